@@ -1,0 +1,152 @@
+"""TVC actuator: exact linear response, limiter law, β̈ consistency, robustness."""
+
+import math
+
+import numpy as np
+import pytest
+
+from vega_plant.actuator import ActuatorParams, TvcActuator, linear_actuator_ss
+from vega_plant.vehicle_data import load_vehicle_data
+
+DEG = math.pi / 180.0
+
+
+@pytest.fixture(scope="module")
+def params():
+    return ActuatorParams.from_vehicle(load_vehicle_data())
+
+
+def _analytic_step(u, t, wn, zeta):
+    """β, β̇ of ω²/(s² + 2ζωs + ω²) for a step u at t = 0 from rest (0 < ζ < 1)."""
+    wd = wn * math.sqrt(1.0 - zeta ** 2)
+    e = np.exp(-zeta * wn * t)
+    beta = u * (1.0 - e * (np.cos(wd * t) + zeta * wn / wd * np.sin(wd * t)))
+    beta_dot = u * wn ** 2 / wd * e * np.sin(wd * t)
+    return beta, beta_dot
+
+
+def test_parameters_from_vehicle(params):
+    assert params.wn_radps == 100.0           # thesis code: 1e4/(s² + 100 s + 1e4)
+    assert params.zeta == 0.5
+    assert params.position_limit_rad == pytest.approx(6.5 * DEG)   # thesis Table 3.1
+    assert params.rate_limit_radps == pytest.approx(20.0 * DEG)    # vehicle.yaml assumption
+    assert params.dt_s == pytest.approx(1e-3)
+    scaled = ActuatorParams.from_vehicle(load_vehicle_data(), bandwidth_scale=1.1)
+    assert scaled.wn_radps == pytest.approx(110.0) and scaled.zeta == 0.5
+
+
+def test_linear_model_is_the_thesis_transfer_function(params):
+    A, B, C, D = linear_actuator_ss(params)
+    for w in (0.0, 10.0, 100.0, 1000.0):
+        s = 1j * w
+        g = C @ np.linalg.solve(s * np.eye(2) - A, B) + D
+        expected = 1e4 / (s ** 2 + 100.0 * s + 1e4)
+        assert g[0, 0] == pytest.approx(expected, rel=1e-12)          # β / β_cmd
+        assert g[1, 0] == pytest.approx(s * expected, rel=1e-12, abs=1e-12)   # β̇
+        assert g[2, 0] == pytest.approx(s ** 2 * expected, rel=1e-12, abs=1e-12)  # β̈
+
+
+def test_small_step_matches_analytic_response(params):
+    """Unlimited: samples equal the exact continuous response (|β̇| peak ≈ 5.5°/s < 20°/s)."""
+    act = TvcActuator(params)
+    u = 0.1 * DEG
+    beta, beta_dot, beta_ddot = act.advance(u, 300)
+    t = params.dt_s * np.arange(1, 301)
+    b_ref, r_ref = _analytic_step(u, t, params.wn_radps, params.zeta)
+    assert np.max(np.abs(beta - b_ref)) < 1e-9 * u
+    assert np.max(np.abs(beta_dot - r_ref)) < 1e-9 * u * params.wn_radps
+    np.testing.assert_allclose(beta_ddot, 1e4 * (u - b_ref) - 100.0 * r_ref, rtol=0,
+                               atol=1e-9 * u * params.wn_radps ** 2)
+    # 16.3 % overshoot of a ζ = 0.5 second-order system at t = π/ω_d = 36.3 ms
+    assert np.max(beta) / u == pytest.approx(1.0 + math.exp(-math.pi / math.sqrt(3.0)), rel=1e-3)
+    assert np.max(np.abs(beta_dot)) < params.rate_limit_radps
+
+
+def test_steady_state(params):
+    act = TvcActuator(params)
+    beta, beta_dot, beta_ddot = act.advance(-0.3 * DEG, 1000)
+    assert beta[-1] == pytest.approx(-0.3 * DEG, abs=1e-15)
+    assert abs(beta_dot[-1]) < 1e-15 and abs(beta_ddot[-1]) < 1e-12
+
+
+def test_rate_limit_active_and_respected(params):
+    act = TvcActuator(params)
+    beta, beta_dot, beta_ddot = act.advance(5.0 * DEG, 600)
+    rate = params.rate_limit_radps
+    assert np.max(np.abs(beta_dot)) == rate                   # reached, never exceeded
+    on_limit = beta_dot == rate
+    assert on_limit.sum() > 100                               # 5° at 20°/s takes ≈ 0.25 s
+    assert np.all(beta_ddot[on_limit] == 0.0)                 # held on the limit
+    steps = np.diff(np.concatenate(([0.0], beta)))
+    assert np.max(np.abs(steps)) <= rate * params.dt_s * (1 + 1e-12)
+    # on the limit the nozzle moves exactly R·dt per step
+    idx = np.flatnonzero(on_limit[1:] & on_limit[:-1]) + 1
+    np.testing.assert_allclose(steps[idx], rate * params.dt_s, rtol=1e-12)
+    assert beta[-1] == pytest.approx(5.0 * DEG, abs=1e-9)     # and still settles
+
+
+def test_position_limit(params):
+    act = TvcActuator(params)
+    pos = params.position_limit_rad
+    beta, beta_dot, beta_ddot = act.advance(10.0 * DEG, 1000)
+    assert np.max(beta) == pos and np.all(beta <= pos)
+    assert beta[-1] == pos and beta_dot[-1] == 0.0 and beta_ddot[-1] == 0.0
+    # leaves the stop when the command comes back inside
+    beta2, beta_dot2, _ = act.advance(0.0, 1000)
+    assert beta_dot2[0] < 0.0 and beta2[0] < pos
+    assert beta2[-1] == pytest.approx(0.0, abs=1e-9)
+    # the negative stop as well
+    beta3, _, _ = act.advance(-1.0, 2000)
+    assert np.min(beta3) == -pos and beta3[-1] == -pos
+
+
+def test_beta_ddot_consistent_with_finite_differences(params):
+    """Over each step β̇ changes by the trapezoidal integral of β̈ (O(dt²) error)."""
+    act = TvcActuator(params)
+    _, beta_dot, beta_ddot = act.advance(0.2 * DEG, 200)
+    rd = np.concatenate(([0.0], beta_dot))
+    acc = np.concatenate(([act.params.wn_radps ** 2 * 0.2 * DEG], beta_ddot))  # β̈(0+) = ω²u
+    fd = np.diff(rd) / params.dt_s
+    trap = 0.5 * (acc[1:] + acc[:-1])
+    assert np.max(np.abs(fd - trap)) < 2e-3 * np.max(np.abs(acc))
+    # and not merely small: the β̈ signal is large and changes sign
+    assert np.max(acc) > 0 > np.min(acc)
+
+
+def test_nan_command_holds_last_command(params):
+    a, b = TvcActuator(params), TvcActuator(params)
+    a.advance(0.5 * DEG, 20)
+    b.advance(0.5 * DEG, 20)
+    for cmd in (math.nan, math.inf, -math.inf):
+        assert a.step(cmd) == b.step(0.5 * DEG)
+    # after reset the held command is the reset position
+    a.reset(1.0 * DEG)
+    assert a.step(math.nan) == (1.0 * DEG, 0.0, 0.0)
+
+
+def test_never_raises_on_finite_input_and_stays_bounded(params):
+    act = TvcActuator(params)
+    rng = np.random.default_rng(1)
+    for cmd in list(rng.uniform(-1e300, 1e300, 200)) + [1e308, -1e308, 0.0]:
+        b, r, a = act.step(float(cmd))
+        assert abs(b) <= params.position_limit_rad and abs(r) <= params.rate_limit_radps
+        assert not math.isnan(a)
+
+
+def test_advance_equals_repeated_steps(params):
+    a, b = TvcActuator(params), TvcActuator(params)
+    cmds = np.linspace(-3.0, 8.0, 50) * DEG
+    batch = a.advance(cmds, 50)
+    single = np.array([b.step(c) for c in cmds]).T
+    np.testing.assert_array_equal(np.array(batch), single)
+    with pytest.raises(ValueError):
+        a.advance([0.0, 0.0], 3)
+
+
+def test_invalid_parameters_rejected():
+    with pytest.raises(ValueError):
+        ActuatorParams(wn_radps=0.0, zeta=0.5, position_limit_rad=0.1, rate_limit_radps=0.3,
+                       dt_s=1e-3)
+    with pytest.raises(ValueError):
+        ActuatorParams(wn_radps=100.0, zeta=0.5, position_limit_rad=0.1,
+                       rate_limit_radps=math.nan, dt_s=1e-3)
