@@ -1,0 +1,106 @@
+# VEGA TVC flight software: workspace set-up, tests and software-in-the-loop runs.
+#
+#   make setup   .venv from requirements.txt, colcon build of ros2_ws, offline_synthesis, `vega`
+#   make test    the whole pytest suite (sets up first)
+#   make sil     fly the default SIL scenario (sets up first)
+#   make clean   remove the workspace build products and caches; `make distclean` also .venv
+#
+# Every step is incremental: a second `make setup` with nothing changed does nothing.
+# Environment rules (../shared/design/ENVIRONMENT.md): every process started from here discovers
+# on localhost only; `vega`, `vega-env` and the test suite pick a ROS_DOMAIN_ID per run
+# (vega_sil/rosenv.py) unless the caller exported one (1..101).
+
+SHELL := /bin/bash
+.SHELLFLAGS := -eu -o pipefail -c
+.DEFAULT_GOAL := setup
+.DELETE_ON_ERROR:
+
+ROOT := $(patsubst %/,%,$(dir $(abspath $(lastword $(MAKEFILE_LIST)))))
+PYTHON ?= python3
+VENV := $(ROOT)/.venv
+WS := $(ROOT)/ros2_ws
+PYTEST_ARGS ?=
+
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+unexport ROS_LOCALHOST_ONLY ROS_STATIC_PEERS
+
+REQUIREMENTS_STAMP := $(VENV)/.stamp-requirements
+OFFLINE_STAMP := $(VENV)/.stamp-offline-synthesis
+WS_STAMP := $(WS)/install/.stamp-build
+BUILD_LOG := $(WS)/log/make-colcon-build.log
+WRAPPERS := $(VENV)/bin/vega $(VENV)/bin/vega-env
+
+# Workspace inputs that need a colcon build. The Python package directories of the
+# ament_python packages are left out: --symlink-install links them, so edits (and new modules
+# or data files) take effect without a rebuild.
+PY_PACKAGES := $(notdir $(patsubst %/setup.py,%,$(wildcard $(WS)/src/*/setup.py)))
+WS_SOURCES := $(filter-out $(foreach p,$(PY_PACKAGES),$(WS)/src/$(p)/$(p) $(WS)/src/$(p)/$(p)/%), \
+  $(shell find $(WS)/src -name __pycache__ -prune -o -name '*.pyc' -o -print 2>/dev/null))
+
+COLCON_FLAGS := --symlink-install \
+  --cmake-args -DBUILD_TESTING=OFF -DPython3_EXECUTABLE=$(VENV)/bin/python
+
+.PHONY: setup test sil clean distclean help
+
+help:
+	@sed -n '2,11s/^# \{0,1\}//p' $(firstword $(MAKEFILE_LIST))
+
+setup: $(REQUIREMENTS_STAMP) $(WS_STAMP) $(OFFLINE_STAMP) $(WRAPPERS)
+
+$(VENV)/bin/python:
+	$(PYTHON) -m venv $(VENV)
+
+$(REQUIREMENTS_STAMP): $(ROOT)/requirements.txt | $(VENV)/bin/python
+	$(VENV)/bin/python -m pip install --disable-pip-version-check --quiet -r $(ROOT)/requirements.txt
+	touch $@
+
+$(WS_STAMP): $(REQUIREMENTS_STAMP) $(WS_SOURCES)
+	@echo "colcon build $(WS) (log: $(BUILD_LOG))"
+	@mkdir -p $(dir $(BUILD_LOG))
+	@source $(ROOT)/tools/env.bash --no-workspace && cd $(WS) && colcon build $(COLCON_FLAGS) \
+	  > $(BUILD_LOG) 2>&1 || { cat $(BUILD_LOG); echo "colcon build failed (log above)"; exit 1; }
+	@# The venv is an ament prefix but not a colcon one: colcon's warning about that is expected.
+	@grep -E '^(Finished|Failed)|WARNING' $(BUILD_LOG) \
+	  | grep -v "doesn't contain any 'local_setup" || true
+	@touch $@
+
+# (re-installed once offline_synthesis/__init__.py appears: the editable finder then maps a
+# regular package instead of a namespace package)
+$(OFFLINE_STAMP): $(ROOT)/offline_synthesis/pyproject.toml $(REQUIREMENTS_STAMP) \
+  $(wildcard $(ROOT)/offline_synthesis/offline_synthesis/__init__.py)
+	$(VENV)/bin/python -m pip install --disable-pip-version-check --quiet \
+	  --no-deps --no-build-isolation --editable $(ROOT)/offline_synthesis
+	touch $@
+
+# Small wrappers that set up the whole environment (tools/env.bash) from any directory, without
+# an activated venv: `vega ...` runs the command line, `vega-env CMD ...` runs any command.
+$(VENV)/bin/vega: $(ROOT)/Makefile | $(VENV)/bin/python
+	@echo "write $@"
+	@printf '%s\n' '#!/usr/bin/env bash' \
+	  '# vega: the VEGA TVC command line (written by `make setup`, see Makefile).' \
+	  'source "$(ROOT)/tools/env.bash"' \
+	  'exec "$$VIRTUAL_ENV/bin/python" -m vega_sil.cli "$$@"' > $@
+	@chmod +x $@
+
+$(VENV)/bin/vega-env: $(ROOT)/Makefile | $(VENV)/bin/python
+	@echo "write $@"
+	@printf '%s\n' '#!/usr/bin/env bash' \
+	  '# vega-env CMD [ARGS...]: run CMD in the VEGA TVC project environment.' \
+	  '# (written by `make setup`, see Makefile)' \
+	  'source "$(ROOT)/tools/env.bash"' \
+	  'exec "$$VIRTUAL_ENV/bin/python" -m vega_sil.rosenv "$$@"' > $@
+	@chmod +x $@
+
+test: setup
+	cd $(ROOT) && $(VENV)/bin/vega-env python -m pytest tests $(PYTEST_ARGS)
+
+sil: setup
+	$(VENV)/bin/vega sil run
+
+clean:
+	rm -rf $(WS)/build $(WS)/install $(WS)/log $(ROOT)/.pytest_cache
+	rm -rf $(ROOT)/offline_synthesis/*.egg-info $(ROOT)/offline_synthesis/build $(OFFLINE_STAMP)
+	find $(ROOT) -name .venv -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
+
+distclean: clean
+	rm -rf $(VENV)

@@ -1,0 +1,1 @@
+"""Flight side of the VEGA TVC loop: controller tables, scheduler, controller runtime, health checks."""

@@ -1,0 +1,41 @@
+"""Build script of the ament_python package vega_plant (layout of ``ros2 pkg create``).
+
+Executables go to ``lib/vega_plant`` (see setup.cfg) so that ``ros2 run vega_plant EXE`` and
+``vega node vega_plant EXE`` find them; files under ``vega_plant/data/`` ship inside the Python
+package; ``package.xml`` and ``config/*`` (if present) are installed to ``share/vega_plant``.
+"""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'vega_plant'
+
+data_files = [
+    ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+    ('share/' + package_name, ['package.xml']),
+]
+config_files = sorted(path for path in glob('config/*') if not path.endswith('~'))
+if config_files:
+    data_files.append(('share/' + package_name + '/config', config_files))
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    package_data={package_name: ['data/*']},
+    data_files=data_files,
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='VEGA TVC maintainers',
+    maintainer_email='maintainers@vega-tvc.invalid',
+    description=(
+        'Truth side of the VEGA TVC loop: vehicle dynamics (rigid body, bending, '
+        'tail-wags-dog), aerodynamics, wind, TVC actuator and INS sensor models, and the '
+        'nodes that run them.'
+    ),
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+        ],
+    },
+)

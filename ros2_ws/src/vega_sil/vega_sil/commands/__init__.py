@@ -1,0 +1,1 @@
+"""Sub-commands of ``vega``: one module per sub-command, each exporting ``register(subparsers)``."""

@@ -1,0 +1,89 @@
+"""``vega node PKG EXE [ARGS...]``: start a ROS 2 executable, like ``ros2 run PKG EXE``.
+
+``ros2 run`` looks the package's install prefix up in the ament index and executes
+``<prefix>/lib/PKG/EXE``; this does the same with the same index (``AMENT_PREFIX_PATH``), so the
+packages keep the layout a full ROS 2 install expects, where the ``ros2`` command line (absent
+from the PyPI wheels) works on them unchanged. The executable replaces this process (``exec``)
+with the project's ROS environment (:mod:`vega_sil.rosenv`); everything after EXE, such as
+``--ros-args --params-file FILE``, is passed to it as is.
+"""
+
+import argparse
+import os
+import sys
+
+from vega_sil import rosenv
+
+__all__ = ["register", "find_executable"]
+
+
+def find_executable(package, executable):
+    """Return the path of executable ``executable`` of ROS 2 package ``package``.
+
+    Parameters
+    ----------
+    package : str
+        Package name, looked up in the ament index.
+    executable : str
+        Name of a file in ``<prefix>/lib/<package>``.
+
+    Returns
+    -------
+    str
+        ``<prefix>/lib/<package>/<executable>``.
+
+    Raises
+    ------
+    ValueError
+        One line: the package is not in the ament index, or has no such executable (the
+        message lists the ones it has).
+    """
+    from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+
+    try:
+        prefix = get_package_prefix(package)
+    except PackageNotFoundError:
+        raise ValueError(
+            f"package {package!r} not found in the ament index "
+            f"(AMENT_PREFIX_PATH={os.environ.get('AMENT_PREFIX_PATH', '')}); "
+            f"did 'make setup' build it?") from None
+    directory = os.path.join(prefix, "lib", package)
+    path = os.path.join(directory, executable)
+    if os.sep in executable or not (os.path.isfile(path) and os.access(path, os.X_OK)):
+        try:
+            available = sorted(
+                name for name in os.listdir(directory)
+                if os.access(os.path.join(directory, name), os.X_OK)
+                and os.path.isfile(os.path.join(directory, name)))
+        except OSError:
+            available = []
+        raise ValueError(
+            f"no executable {executable!r} in package {package!r} "
+            f"(available: {', '.join(available) or 'none'})")
+    return path
+
+
+def _run(args):
+    """Replace this process by the executable, in the project's ROS environment."""
+    path = find_executable(args.package, args.executable)
+    env = rosenv.ros_environment()
+    if args.ros_domain_id_picked:
+        print(f"vega node: ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']} picked for this node; export "
+              f"ROS_DOMAIN_ID=N (1..101) in every terminal to make nodes meet", file=sys.stderr)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os.execve(path, [path, *args.arguments], env)
+
+
+def register(subparsers):
+    """Add the ``node`` sub-command."""
+    parser = subparsers.add_parser(
+        "node", help="start a ROS 2 executable (the equivalent of 'ros2 run')",
+        description="Start executable EXE of ROS 2 package PKG, found through the ament index "
+                    "like 'ros2 run PKG EXE', with the project's ROS environment (LOCALHOST "
+                    "discovery; ROS_DOMAIN_ID from the caller, else picked for this node).")
+    parser.add_argument("package", metavar="PKG", help="ROS 2 package name")
+    parser.add_argument("executable", metavar="EXE", help="executable of the package")
+    parser.add_argument("arguments", nargs=argparse.REMAINDER, metavar="ARGS",
+                        help="passed to the executable, e.g. --ros-args --params-file FILE")
+    parser.set_defaults(func=_run)

@@ -1,0 +1,125 @@
+"""The ``vega`` command-line skeleton: sub-command discovery, errors, ``sil`` and ``node``.
+
+Run in-process through :func:`vega_sil.cli.main` (``vega node`` only on its error paths: on
+success it replaces the process; tests/test_environment.py runs it for real).
+"""
+
+import sys
+import types
+
+import pytest
+
+from vega_sil import cli
+
+
+def _fake_command_module(name, error):
+    """A command module whose sub-command ``name`` raises ``error``."""
+    module = types.ModuleType(f"vega_sil.commands.{name}")
+
+    def _fail(args):
+        raise error
+
+    def register(subparsers):
+        subparsers.add_parser(name).set_defaults(func=_fail)
+
+    module.register = register
+    return module
+
+
+def test_help_lists_existing_commands_only(capsys):
+    """``vega --help`` exits 0 and lists sil and node; modules not written yet are skipped."""
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(["--help"])
+    assert exit_info.value.code == 0
+    out = capsys.readouterr().out
+    assert "sil" in out and "node" in out
+    assert "unavailable" not in out
+
+
+def test_missing_module_is_skipped(monkeypatch):
+    """A name in COMMANDS without a module does not break the command line."""
+    monkeypatch.setattr(cli, "COMMANDS", ("no_such_command_module", "sil"))
+    parser = cli.build_parser()
+    assert parser.parse_args(["sil", "run"]).command == "sil"
+    with pytest.raises(SystemExit):
+        parser.parse_args(["no_such_command_module"])
+
+
+def test_broken_module_reports_itself(monkeypatch, capsys):
+    """A module that cannot register gets a sub-command that says why, in one line."""
+    monkeypatch.setattr(cli, "COMMANDS", ("broken", "sil"))
+    monkeypatch.setitem(sys.modules, "vega_sil.commands.broken",
+                        types.ModuleType("vega_sil.commands.broken"))
+    assert cli.main(["broken"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("vega: error: sub-command 'broken' is unavailable: AttributeError")
+    assert err.count("\n") == 1
+
+
+@pytest.mark.parametrize("error, message", [
+    (ValueError("bad input:\n  line two"), "bad input: line two"),
+    (FileNotFoundError(2, "No such file or directory", "table.yaml"),
+     "[Errno 2] No such file or directory: 'table.yaml'"),
+])
+def test_errors_print_one_line_and_exit_2(monkeypatch, capsys, error, message):
+    """ValueError and OSError from a sub-command: ``vega: error: <message>``, exit status 2."""
+    monkeypatch.setattr(cli, "COMMANDS", ("explode",))
+    monkeypatch.setitem(sys.modules, "vega_sil.commands.explode",
+                        _fake_command_module("explode", error))
+    assert cli.main(["explode"]) == 2
+    assert capsys.readouterr().err == f"vega: error: {message}\n"
+
+
+def test_no_command_is_a_usage_error(capsys):
+    """``vega`` alone: usage on stderr, exit status 2."""
+    assert cli.main([]) == 2
+    assert "vega: error: a COMMAND is required" in capsys.readouterr().err
+
+
+def test_unknown_command_is_a_usage_error():
+    """argparse's usage errors keep exit status 2."""
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(["no-such-command"])
+    assert exit_info.value.code == 2
+
+
+def test_sil_is_not_there_yet(capsys):
+    """``vega sil run`` says it lands with the SIL issue, one line, exit status 2."""
+    assert cli.main(["sil", "run"]) == 2
+    assert capsys.readouterr().err == "vega sil: not yet: SIL lands with the SIL issue\n"
+
+
+def test_node_unknown_package(capsys):
+    """``vega node`` with a package missing from the ament index: one-line error, exit 2."""
+    assert cli.main(["node", "no_such_package", "talker"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("vega: error: package 'no_such_package' not found in the ament index")
+    assert err.count("\n") == 1
+
+
+def test_node_unknown_executable(capsys, tmp_path, monkeypatch):
+    """``vega node`` with an executable the package lacks lists the ones it has."""
+    prefix = tmp_path / "prefix"
+    marker = prefix / "share" / "ament_index" / "resource_index" / "packages" / "vega_fake"
+    marker.parent.mkdir(parents=True)
+    marker.write_text("")
+    lib = prefix / "lib" / "vega_fake"
+    lib.mkdir(parents=True)
+    for name, mode in (("talker", 0o755), ("listener", 0o755), ("notes.txt", 0o644)):
+        (lib / name).write_text("#!/bin/sh\n")
+        (lib / name).chmod(mode)
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(prefix))
+    assert cli.main(["node", "vega_fake", "notes.txt"]) == 2
+    assert capsys.readouterr().err == (
+        "vega: error: no executable 'notes.txt' in package 'vega_fake' "
+        "(available: listener, talker)\n")
+    assert cli.main(["node", "vega_fake", "../vega_fake/talker"]) == 2
+    assert "no executable" in capsys.readouterr().err
+
+
+def test_node_passes_ros_args_through():
+    """Everything after EXE, options included, belongs to the executable."""
+    args = cli.build_parser().parse_args(
+        ["node", "vega_plant", "plant", "--ros-args", "--params-file", "p.yaml", "-h"])
+    assert (args.package, args.executable) == ("vega_plant", "plant")
+    assert args.arguments == ["--ros-args", "--params-file", "p.yaml", "-h"]
