@@ -10,9 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["GRID_TIMES_S", "theta_ins_over_beta", "plot_model"]
+from .interconnection import GRID_TIMES_S
 
-GRID_TIMES_S = (10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0)  # thesis §4.3.2
+__all__ = ["theta_ins_over_beta", "plot_model"]
 
 
 def theta_ins_over_beta(A, B, C, w_radps):
