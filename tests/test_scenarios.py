@@ -1,0 +1,143 @@
+"""Scenario files: the shipped scenarios, and the validating loader's one-line errors."""
+
+import math
+import re
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from vega_plant.flight_conditions import FlightConditions
+from vega_plant.vehicle_data import load_vehicle_data
+from vega_sil.scenario import (GustSettings, load_scenario, parse_scenario, scenario_names,
+                               scenario_path)
+
+SETUP_PY = Path(__file__).resolve().parent.parent / "ros2_ws" / "src" / "vega_sil" / "setup.py"
+
+GOOD = """\
+name: demo
+description: a test scenario
+t_start_s: 10.0
+t_end_s: 12.5
+plant: nonlinear
+initial_state:
+  theta_rad: 0.01
+  beta_rad: 0.001
+wind:
+  profile: true
+  turbulence: moderate
+  gust: {start_s: 11.0}
+sensor_noise: false
+seed: 7
+uncertainty: {thrust: 0.05, delay_s: 0.01}
+"""
+
+
+def test_shipped_scenarios():
+    assert scenario_names() == ("gust", "nominal", "severe", "thesis")
+    data = load_vehicle_data()
+    thesis = load_scenario("thesis")
+    assert (thesis.t_start_s, thesis.t_end_s, thesis.plant) == (10.0, 90.0, "linear")
+    assert thesis.initial_state.theta_rad == pytest.approx(math.radians(2.0), rel=1e-15)
+    assert thesis.initial_state.plant_state()[1:] == (0.0,) * 7
+    assert thesis.wind.thesis_constant_dryden and thesis.wind.turbulence == "light"
+    assert not thesis.wind.profile and thesis.wind.gust is None and thesis.sensor_noise
+    nominal = load_scenario("nominal")
+    assert (nominal.t_start_s, nominal.t_end_s, nominal.plant) == (0.0, 100.0, "nonlinear")
+    assert nominal.wind.profile and nominal.wind.turbulence == "light"
+    assert not nominal.wind.thesis_constant_dryden and nominal.sensor_noise
+    gust = load_scenario("gust")
+    assert replace(gust, name="nominal", description=nominal.description, wind=nominal.wind) \
+        == nominal
+    g = gust.wind.gust
+    assert (g.amplitude_mps, g.duration_s) == (data["wind.gust.amplitude_mps"],
+                                               data["wind.gust.duration_s"])
+    fc = FlightConditions.load()
+    t_max_q = fc.t_s[np.argmax(fc.column("q_pa"))]
+    assert abs(g.start_s + g.duration_s / 2 - t_max_q) <= 0.1     # peak at max-Q
+    severe = load_scenario("severe")
+    assert severe.wind.turbulence == "severe" and severe.wind.profile
+    for name in scenario_names():
+        assert load_scenario(scenario_path(name)) == load_scenario(name)
+
+
+def test_full_file(tmp_path):
+    path = tmp_path / "demo.yaml"
+    path.write_text(GOOD)
+    s = load_scenario(path)
+    assert (s.t_start_ms, s.t_end_ms) == (10_000, 12_500)
+    assert s.wind.gust == GustSettings(11.0, 9.0, 2.0)        # vehicle.yaml defaults
+    assert s.deviations == {"delay_s": 0.01, "thrust": 0.05}
+    assert s.initial_state.beta_rad == 0.001 and s.seed == 7
+
+
+def test_setup_py_installs_the_yaml_files():
+    text = SETUP_PY.read_text()
+    assert "'scenarios/*.yaml'" in text and "'config/*.yaml'" in text
+
+
+def _error(tmp_path, text, name="demo"):
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(text)
+    with pytest.raises(ValueError) as info:
+        load_scenario(path)
+    message = str(info.value)
+    assert "\n" not in message and message.startswith(str(path))
+    return message
+
+
+@pytest.mark.parametrize("old, new, field", [
+    ("seed: 7", "seed: 7\nextra: 1", "extra"),
+    ("  profile: true", "  profile: true\n  profil: true", "wind.profil"),
+    ("  theta_rad: 0.01", "  theta: 0.01", "initial_state.theta"),
+    ("gust: {start_s: 11.0}", "gust: {start_s: 11.0, peak: 3}", "wind.gust.peak"),
+    ("seed: 7", "", "seed"),
+    ("gust: {start_s: 11.0}", "gust: {duration_s: 2}", "wind.gust.start_s"),
+    ("t_end_s: 12.5", "t_end_s: '12.5'", "t_end_s"),
+    ("seed: 7", "seed: 7.0", "seed"),
+    ("seed: 7", "seed: true", "seed"),
+    ("seed: 7", "seed: -1", "seed"),
+    ("  profile: true", "  profile: 1", "wind.profile"),
+    ("sensor_noise: false", "sensor_noise: off2", "sensor_noise"),
+    ("plant: nonlinear", "plant: quadratic", "plant"),
+    ("  turbulence: moderate", "  turbulence: stormy", "wind.turbulence"),
+    ("t_end_s: 12.5", "t_end_s: 12.505", "t_end_s"),
+    ("t_end_s: 12.5", "t_end_s: 10.0", "t_end_s"),
+    ("t_start_s: 10.0", "t_start_s: -0.01", "t_start_s"),
+    ("t_start_s: 10.0", "t_start_s: .nan", "t_start_s"),
+    ("  beta_rad: 0.001", "  beta_rad: 0.2", "initial_state.beta_rad"),
+    ("gust: {start_s: 11.0}", "gust: {start_s: 11.0, duration_s: 0}", "wind.gust.duration_s"),
+    ("uncertainty: {thrust: 0.05, delay_s: 0.01}", "uncertainty: {thrusts: 0.05}",
+     "uncertainty.thrusts"),
+    ("uncertainty: {thrust: 0.05, delay_s: 0.01}", "uncertainty: {thrust: 0.5}",
+     "uncertainty.thrust"),
+    ("uncertainty: {thrust: 0.05, delay_s: 0.01}", "uncertainty: {delay_s: 0.0005}",
+     "uncertainty.delay_s"),
+])
+def test_loader_names_the_field(tmp_path, old, new, field):
+    assert old in GOOD
+    message = _error(tmp_path, GOOD.replace(old, new, 1))
+    assert f"field '{field}'" in message, message
+
+
+def test_loader_other_errors(tmp_path):
+    assert "differs from the file name" in _error(tmp_path, GOOD, name="other")
+    assert "not valid YAML" in _error(tmp_path, "name: [unclosed")
+    assert "top level must be a mapping" in _error(tmp_path, "- a\n- b\n")
+    no_wind_mapping = GOOD[:GOOD.index("wind:")] + "wind: 3\nsensor_noise: false\nseed: 7\n"
+    assert "field 'wind': must be a mapping" in _error(tmp_path, no_wind_mapping)
+    with pytest.raises(ValueError, match=re.escape("unknown scenario 'nope' (shipped: gust, "
+                                                   "nominal, severe, thesis)")):
+        load_scenario("nope")
+    with pytest.raises(ValueError, match="cannot read scenario"):
+        load_scenario(tmp_path / "missing.yaml")
+
+
+def test_constructor_validates():
+    thesis = load_scenario("thesis")
+    with pytest.raises(ValueError, match=r"^scenario 'thesis': field 'plant': must be one of"):
+        replace(thesis, plant="quadratic")
+    with pytest.raises(ValueError, match=r"^scenario 'thesis': field 't_end_s'"):
+        replace(thesis, t_end_s=5.0)
+    assert parse_scenario(GOOD, "x.yaml").name == "demo"
