@@ -26,6 +26,8 @@ from typing import Mapping
 
 import numpy as np
 
+from .textfile import read_text
+
 __all__ = [
     "COLUMNS",
     "FORMAT_NAME",
@@ -144,12 +146,7 @@ class FlightConditions:
         if path is None:
             return _load_default()
         p = Path(path)
-        try:
-            text = p.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            reason = getattr(exc, "strerror", None) or type(exc).__name__
-            raise FlightConditionsError(f"{p}: cannot read flight conditions ({reason})") from None
-        return _parse(str(p), text)
+        return _parse(str(p), read_text(p, "flight conditions", FlightConditionsError))
 
     @property
     def t_s(self) -> np.ndarray:

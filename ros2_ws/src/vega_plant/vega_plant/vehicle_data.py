@@ -22,6 +22,8 @@ from typing import Mapping
 import numpy as np
 import yaml
 
+from .textfile import read_text
+
 __all__ = [
     "FIELDS",
     "EQUAL_LENGTH",
@@ -313,11 +315,7 @@ def load_vehicle_data(path: str | Path | None = None) -> VehicleData:
     if path is None:
         return _load_default()
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise VehicleDataError(f"{p}: cannot read vehicle data ({exc.strerror})") from None
-    return _parse(str(p), text)
+    return _parse(str(p), read_text(p, "vehicle data", VehicleDataError))
 
 
 @lru_cache(maxsize=1)

@@ -45,6 +45,7 @@ import numpy as np
 import yaml
 
 from vega_plant.flight_conditions import FlightConditions
+from vega_plant.textfile import read_text
 
 __all__ = ["REQUIREMENT_KEYS", "ThesisFigure", "RequirementSpec", "RequirementResult",
            "RequirementReport", "default_requirements_path", "load_requirements",
@@ -274,12 +275,7 @@ def load_requirements(path: str | Path | None = None) -> RequirementSpec:
     if path is None:
         return _load_default()
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        reason = getattr(exc, "strerror", None) or type(exc).__name__
-        raise ValueError(f"{p}: cannot read requirements ({reason})") from None
-    return _parse(str(p), text)
+    return _parse(str(p), read_text(p, "requirements"))
 
 
 @lru_cache(maxsize=1)

@@ -44,6 +44,7 @@ from typing import Any, Mapping
 import yaml
 
 from vega_plant.dynamics import STATES
+from vega_plant.textfile import read_text
 from vega_plant.uncertainty import UncertaintySet
 from vega_plant.vehicle_data import VehicleData, load_vehicle_data
 from vega_plant.wind import INTENSITIES
@@ -181,12 +182,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         path = Path(name_or_path)
     else:
         path = scenario_path(text_path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        reason = getattr(exc, "strerror", None) or type(exc).__name__
-        raise ValueError(f"{path}: cannot read scenario ({reason})") from None
-    return parse_scenario(text, str(path), expected_name=path.stem)
+    return parse_scenario(read_text(path, "scenario"), str(path), expected_name=path.stem)
 
 
 # ----------------------------------------------------------------------------- parsing
