@@ -1,0 +1,572 @@
+"""Grid-based, rate-bounded LPV H∞ (induced L2) output-feedback synthesis (LPV_SYNTHESIS.md §2–§3).
+
+For the normalised plant (plant_scaling.py) find X(ρ), Y(ρ) = Σ_k φ_k(θ) X_k, Y_k with the basis
+φ = [1, θ, θ²] (θ the normalised scheduling variable) and g = 1/γ such that at every grid point
+ρ_i and every rate vertex ν the LMIs of LPV_SYNTHESIS.md §2 hold (Wu, Yang, Packard & Becker
+1996; the elimination form of Gahinet & Apkarian 1994; Apkarian & Adams 1998):
+
+    LMI-X:  [ÂX + XÂᵀ − ∂X[ν] − B2B2ᵀ,  XC11ᵀ,  gB̂ ;  C11X, −I, gD_r ;  gB̂ᵀ, gD_rᵀ, −I] < 0
+    LMI-Y:  [YÃ + ÃᵀY + ∂Y[ν] − C2ᵀC2,  YB11,  gC̃ᵀ ;  B11ᵀY, −I, gD_cᵀ ;  gC̃, gD_c, −I] < 0
+    coupling: [X, gI; gI, Y] > 0
+
+Two stages (§3): stage 1 maximises g (minimum γ) with a tiny trace regulariser; stage 2 fixes
+g = 1/(backoff·γ_1) and maximises the coupling margin t with X, Y bounded, which gives a
+well-conditioned controller. Every solver answer is checked independently (eigenvalues of every
+LMI, then the closed-loop certificate of certificate.py) before it is accepted; a fallback solver
+is tried when the first one fails or its answer does not pass.
+
+Two additions to the recipe of §3, both found necessary on test plants:
+
+- the strictness margin ε is relative (ε·V on the Lyapunov block, V = X or Y, plus ε times the
+  scale of the constant terms), because the solver's absolute error grows with ‖V‖ and an
+  absolute ε let slightly infeasible answers through or rejected good ones;
+- stage 2 by default also imposes the LMIs at the midpoints of the grid segments (interpolated
+  from the grid LMIs) with a margin τ: the plain stage 2 leaves every LMI active at the grid
+  points, and the certificate then failed between grid points even for a smooth plant, for
+  the exact as well as for the interpolated controller.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import dataclass, field, replace
+
+import cvxpy as cp
+import numpy as np
+
+from .certificate import certificate_check
+from .gridded_plant import GriddedPlant, PlantDataError, PlantPoint
+from .plant_scaling import PlantScaling, plant_scaling
+from .reconstruction import controller_at
+
+__all__ = ["SynthesisError", "LpvSynthesisResult", "synthesize"]
+
+_ACCEPTED_STATUSES = (cp.OPTIMAL, cp.OPTIMAL_INACCURATE)
+_SOLVER_OPTIONS = {
+    # faer: multithreaded supernodal LDLᵀ (qdldl is ~20× slower on the 19-state problem);
+    # chordal decomposition only splits the identity blocks and costs accuracy; the tolerances
+    # sit well below the relative strictness margin ε = 1e-6.
+    "CLARABEL": {"max_iter": 300, "direct_solve_method": "faer",
+                 "chordal_decomposition_enable": False,
+                 "tol_feas": 1e-7, "tol_gap_abs": 1e-7, "tol_gap_rel": 1e-6},
+    "SCS": {"eps_abs": 1e-7, "eps_rel": 1e-7, "max_iters": 100_000, "time_limit_secs": 600.0},
+}
+
+
+class SynthesisError(ValueError):
+    """The LMIs could not be solved to an answer that passes the independent checks."""
+
+
+@dataclass(frozen=True)
+class LpvSynthesisResult:
+    """Outcome of :func:`synthesize`.
+
+    Attributes
+    ----------
+    gamma_min : float
+        Stage-1 optimum γ_1 = 1/g_1 (a certified upper bound of the best achievable level).
+    gamma : float
+        Performance level of the returned controller (stage 2: backoff·γ_1).
+    X_k, Y_k : tuple of np.ndarray
+        Coefficients of X(θ) = Σ_k θ^k X_k and Y(θ) in the balanced state coordinates, g-form
+        (X_std = γX). One coefficient when the variable is constant.
+    rate_vertices : tuple of float
+        Values of ρ̇ at which the LMIs were imposed (empty for the quadratic variant).
+    scaling : PlantScaling
+        State, (w, e) and θ scalings of §1.
+    points : tuple of NormalisedPoint
+        The normalised plant at the grid values.
+    rho : np.ndarray
+        Grid values.
+    sizes : tuple of int
+        (n_w, n_u, n_e, n_y).
+    t_margin : float
+        Stage-2 coupling margin t ([X − tI, gI; gI, Y] ≥ 0); nan without stage 2.
+    times_s : dict
+        Per stage: wall time (problem construction, solve and checks), solver-reported time
+        ("…_solver") and iteration count ("…_iterations").
+    statuses : dict
+        Solver status of the accepted answer of each stage.
+    solvers : dict
+        Solver that produced the accepted answer of each stage.
+    lmi_max_eig : dict
+        Largest eigenvalue over all LMIs of each stage (coupling entered as −[X, gI; gI, Y]);
+        negative = satisfied.
+    certificate_max_eig : float
+        Largest certificate eigenvalue over the grid points and rate vertices (negative).
+    robustness : float
+        Stage-2 robustness margin τ actually used (0: plain stage 2 of §3, or no stage 2).
+    """
+
+    gamma_min: float
+    gamma: float
+    X_k: tuple
+    Y_k: tuple
+    rate_vertices: tuple
+    scaling: PlantScaling
+    points: tuple
+    rho: np.ndarray
+    sizes: tuple
+    t_margin: float = float("nan")
+    times_s: dict = field(default_factory=dict)
+    statuses: dict = field(default_factory=dict)
+    solvers: dict = field(default_factory=dict)
+    lmi_max_eig: dict = field(default_factory=dict)
+    certificate_max_eig: float = float("nan")
+    robustness: float = 0.0
+
+    def X(self, rho):
+        """X(ρ) = Σ_k θ^k X_k."""
+        return _values_at(self.X_k, self.scaling.theta(rho), self.scaling.rho_half)[0]
+
+    def Y(self, rho):
+        """Y(ρ) = Σ_k θ^k Y_k."""
+        return _values_at(self.Y_k, self.scaling.theta(rho), self.scaling.rho_half)[0]
+
+    def dX_drho(self, rho):
+        """∂X/∂ρ = (1/ρ_half) Σ_k k θ^(k−1) X_k (zero for a constant X)."""
+        derivative = _values_at(self.X_k, self.scaling.theta(rho), self.scaling.rho_half)[1]
+        return np.zeros_like(self.X_k[0]) if derivative is None else derivative
+
+    def dY_drho(self, rho):
+        """∂Y/∂ρ = (1/ρ_half) Σ_k k θ^(k−1) Y_k (zero for a constant Y)."""
+        derivative = _values_at(self.Y_k, self.scaling.theta(rho), self.scaling.rho_half)[1]
+        return np.zeros_like(self.Y_k[0]) if derivative is None else derivative
+
+    def controller(self, rho, rho_dot, plant_point=None):
+        """Continuous controller (A_K, B_K, C_K, D_K), u = K y on the original channels (§4).
+
+        Parameters
+        ----------
+        rho, rho_dot : float
+            Scheduling value and its rate. A_K is affine in ρ̇; it does not depend on ρ̇ for the
+            quadratic and the ``x_constant`` variants.
+        plant_point : PlantPoint or tuple, optional
+            The original plant at ρ. When given, K is reconstructed exactly at ρ; otherwise K
+            is the exact controller at a grid value or the linear interpolation, in ρ, of the
+            two neighbouring grid controllers, with ρ clipped to the grid range (as in the
+            thesis' simulations, LPV_SYNTHESIS.md §6).
+        """
+        if plant_point is not None:
+            if not isinstance(plant_point, PlantPoint):
+                plant_point = PlantPoint(*plant_point, *self.sizes)
+            return self._controller_at_point(self.scaling.normalise(plant_point), rho, rho_dot)
+        rho = float(np.clip(rho, self.rho[0], self.rho[-1]))
+        upper = int(np.searchsorted(self.rho, rho))
+        if self.rho[min(upper, self.rho.size - 1)] == rho:
+            return self._controller_at_point(self.points[upper], rho, rho_dot)
+        lower = upper - 1
+        weight = (rho - self.rho[lower]) / (self.rho[upper] - self.rho[lower])
+        K_lower = self._controller_at_point(self.points[lower], self.rho[lower], rho_dot)
+        K_upper = self._controller_at_point(self.points[upper], self.rho[upper], rho_dot)
+        return tuple((1.0 - weight) * a + weight * b for a, b in zip(K_lower, K_upper))
+
+    def _controller_at_point(self, point, rho, rho_dot):
+        return controller_at(point, self.X(rho), self.Y(rho), rho_dot * self.dX_drho(rho),
+                             self.gamma)
+
+
+def _lmi_x_blocks(p, X, X_dot, g):
+    """Blocks of LMI-X (§2) for numpy arrays or cvxpy expressions; X_dot = ∂X[ν] or None."""
+    n_e1, n_w = p.n_e1, p.B1.shape[1]
+    Phi = p.A_hat @ X + X @ p.A_hat.T - p.B2 @ p.B2.T    # ÂX + XÂᵀ − B2B2ᵀ
+    if X_dot is not None:
+        Phi = Phi - X_dot                                 # − ∂X[ν]
+    if n_e1 == 0:
+        return [[Phi, g * p.B_hat], [g * p.B_hat.T, -np.eye(n_w)]]
+    return [[Phi, X @ p.C11.T, g * p.B_hat],
+            [p.C11 @ X, -np.eye(n_e1), g * p.D_r],
+            [g * p.B_hat.T, g * p.D_r.T, -np.eye(n_w)]]
+
+
+def _lmi_y_blocks(p, Y, Y_dot, g):
+    """Blocks of LMI-Y (§2) for numpy arrays or cvxpy expressions; Y_dot = ∂Y[ν] or None."""
+    n_w1, n_e = p.n_w1, p.C1.shape[0]
+    Phi = Y @ p.A_tilde + p.A_tilde.T @ Y - p.C2.T @ p.C2    # YÃ + ÃᵀY − C2ᵀC2
+    if Y_dot is not None:
+        Phi = Phi + Y_dot                                        # + ∂Y[ν]
+    if n_w1 == 0:
+        return [[Phi, g * p.C_tilde.T], [g * p.C_tilde, -np.eye(n_e)]]
+    return [[Phi, Y @ p.B11, g * p.C_tilde.T],
+            [p.B11.T @ Y, -np.eye(n_w1), g * p.D_c.T],
+            [g * p.C_tilde, g * p.D_c, -np.eye(n_e)]]
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """Where the LMIs are imposed: normalised points, θ_i, basis sizes, rate vertices."""
+
+    points: tuple
+    theta: np.ndarray
+    rho_half: float
+    n_X: int                  # number of basis functions of X (1 or 3)
+    n_Y: int
+    vertices: tuple           # rate vertices ν (empty: no rate terms)
+
+    def rate_terms(self, n_basis):
+        """The rate vertices for a variable with n_basis functions, or (None,) if constant."""
+        return self.vertices if n_basis > 1 and self.vertices else (None,)
+
+    def midpoint_weights(self):
+        """Per grid segment, Lagrange weights [(j, w_j)] of the cubic (quadratic, linear with
+        fewer points) through the grid points nearest to the segment midpoint."""
+        theta = self.theta
+        segments = []
+        for i in range(theta.size - 1):
+            mid = 0.5 * (theta[i] + theta[i + 1])
+            nearest = sorted(np.argsort(np.abs(theta - mid), kind="stable")[:4])
+            weights = [np.prod([(mid - theta[k]) / (theta[j] - theta[k])
+                                for k in nearest if k != j]) for j in nearest]
+            segments.append(list(zip(nearest, weights)))
+        return segments
+
+    def lmi_scales(self):
+        """LMI scales for the strictness margin: max(1, ‖B2B2ᵀ‖), max(1, ‖C2ᵀC2‖)."""
+        s_X = max([1.0] + [np.linalg.norm(p.B2, 2) ** 2 for p in self.points])
+        s_Y = max([1.0] + [np.linalg.norm(p.C2, 2) ** 2 for p in self.points])
+        return s_X, s_Y
+
+
+def _values_at(coefficients, theta_i, rho_half):
+    """(Σ_k θ^k C_k, ∂/∂ρ of it or None if constant) for cvxpy variables or numpy arrays."""
+    value = coefficients[0]
+    derivative = None
+    for k in range(1, len(coefficients)):
+        value = value + theta_i ** k * coefficients[k]
+        term = (k * theta_i ** (k - 1) / rho_half) * coefficients[k]
+        derivative = term if derivative is None else derivative + term
+    return value, derivative
+
+
+def _rate(derivative, nu):
+    """∂[ν] = ν ∂/∂ρ, or None without rate terms."""
+    return None if nu is None else nu * derivative
+
+
+def _all_lmis(layout, Xk, Yk, g, midpoints=False):
+    """Every LMI-X and LMI-Y of §2 as (block list, its Lyapunov variable, scale of its constant
+    term), plus (X(ρ_i), Y(ρ_i)) per grid point; for cvxpy expressions or numpy arrays.
+
+    With ``midpoints`` the list also holds, for every grid segment, the LMIs at the segment
+    midpoint estimated by Lagrange interpolation of the grid LMIs (affine in the variables):
+    for a plant that is smooth on the scale of the grid they hold the LMIs between grid points,
+    where nothing else constrains them (the plant between grid points is not known here).
+    """
+    s_X, s_Y = layout.lmi_scales()
+    per_point, XY = [], []
+    for p, theta_i in zip(layout.points, layout.theta):
+        X, dX = _values_at(Xk, theta_i, layout.rho_half)
+        Y, dY = _values_at(Yk, theta_i, layout.rho_half)
+        XY.append((X, Y))
+        lmis_i = []
+        for nu in layout.rate_terms(layout.n_X):
+            lmis_i.append((_lmi_x_blocks(p, X, _rate(dX, nu), g), X, s_X))   # LMI-X(ρ_i, ν) < 0
+        for nu in layout.rate_terms(layout.n_Y):
+            lmis_i.append((_lmi_y_blocks(p, Y, _rate(dY, nu), g), Y, s_Y))   # LMI-Y(ρ_i, ν) < 0
+        per_point.append(lmis_i)
+    lmis = [lmi for lmis_i in per_point for lmi in lmis_i]
+    if midpoints:
+        for segment in layout.midpoint_weights():
+            for q, (_, _, scale) in enumerate(per_point[0]):
+                # L(ρ_mid, ν) ≈ Σ_j w_j L(ρ_j, ν)
+                terms = [(w, per_point[j][q]) for j, w in segment]
+                blocks = [[sum(w * lmi[0][r][c] for w, lmi in terms)
+                           for c in range(len(terms[0][1][0]))]
+                          for r in range(len(terms[0][1][0]))]
+                lmis.append((blocks, sum(w * lmi[1] for w, lmi in terms), scale))
+    return lmis, XY
+
+
+def _with_margin(blocks, V, scale, eps, extra=0.0):
+    """Blocks of LMI + ε·diag(V + s·I, I, …) + τ·diag(s·I, I, …): the strictness margins.
+
+    The ε part (§3) grows with the Lyapunov variable V (a decay-rate margin of ε/2, invariant
+    under state scaling) plus ε·s with s the scale of the constant term, and ε·I on the identity
+    blocks. The optional τ = ``extra`` part (stage 2) is a plain margin relative to the unit
+    blocks, without a decay-rate demand that slow weight poles could not meet.
+    ``LMI + margin ≤ 0`` is the constraint.
+    """
+    out = [list(row) for row in blocks]
+    n = blocks[0][0].shape[0]
+    out[0][0] = out[0][0] + eps * V + (eps + extra) * scale * np.eye(n)
+    for k in range(1, len(out)):
+        out[k][k] = out[k][k] + (eps + extra) * np.eye(out[k][k].shape[0])
+    return out
+
+
+def _schur_last(blocks):
+    """Schur complement on a constant last block −cI whose row holds constants only.
+
+    [[P, Q], [Qᵀ, −cI]] ≤ 0 ⟺ P + QQᵀ/c ≤ 0 (c > 0): the same constraint, one block smaller;
+    linear in the variables when g is fixed (stage 2).
+    """
+    c = -blocks[-1][-1][0, 0]
+    last_col = [row[-1] for row in blocks[:-1]]
+    return [[blocks[i][j] + last_col[i] @ last_col[j].T / c for j in range(len(blocks) - 1)]
+            for i in range(len(blocks) - 1)]
+
+
+def _lmi_constraints(layout, Xk, Yk, g, eps, reduce, extra=0.0, midpoints=False):
+    """cvxpy constraints LMI-X, LMI-Y (with margins) at every (ρ_i, ν) — and at the segment
+    midpoints if asked — plus X(ρ_i), Y(ρ_i) per grid point."""
+    lmis, XY = _all_lmis(layout, Xk, Yk, g, midpoints)
+    constraints = []
+    for blocks, V, scale in lmis:
+        blocks = _with_margin(blocks, V, scale, eps, extra)
+        if reduce:
+            blocks = _schur_last(blocks)
+        constraints.append(cp.bmat(blocks) << 0)                  # LMI(ρ, ν) + margin ≤ 0
+    return constraints, XY
+
+
+def _solve(problem, solver):
+    """Solve with ``solver``; return (status, solver time, iterations), never raising."""
+    try:
+        problem.solve(solver=solver, **_SOLVER_OPTIONS.get(solver, {}))
+    except cp.error.SolverError:
+        return "solver_error", float("nan"), 0
+    stats = problem.solver_stats
+    return problem.status, stats.solve_time or float("nan"), stats.num_iters or 0
+
+
+def _check_lmis(layout, Xk, Yk, g):
+    """Largest eigenvalue over all LMIs (coupling as −[X, gI; gI, Y]) evaluated in numpy."""
+    lmis, XY = _all_lmis(layout, Xk, Yk, g)
+    worst = -np.inf
+    for blocks, _, _ in lmis:
+        L = np.block(blocks)
+        worst = max(worst, np.linalg.eigvalsh(0.5 * (L + L.T))[-1])
+    for X, Y in XY:
+        n = X.shape[0]
+        coupling = np.block([[X, g * np.eye(n)], [g * np.eye(n), Y]])
+        worst = max(worst, -np.linalg.eigvalsh(0.5 * (coupling + coupling.T))[0])
+    return float(worst)
+
+
+def _coupling(X, Y, g, eps, n):
+    """[X, gI; gI, Y] − ε·diag(X + gI, Y + gI) (the coupling condition with its margin)."""
+    I_n = np.eye(n)
+    return cp.bmat([[(1.0 - eps) * X - eps * g * I_n, g * I_n],
+                    [g * I_n, (1.0 - eps) * Y - eps * g * I_n]])
+
+
+def _variables(layout, n):
+    """Coefficient matrices X_k, Y_k (symmetric cvxpy variables)."""
+    return ([cp.Variable((n, n), symmetric=True, name=f"X{k}") for k in range(layout.n_X)],
+            [cp.Variable((n, n), symmetric=True, name=f"Y{k}") for k in range(layout.n_Y)])
+
+
+@dataclass(frozen=True)
+class _Attempt:
+    """One solver run of one stage: status, solver statistics and the checked answer."""
+
+    solver: str
+    status: str
+    solve_time_s: float
+    iterations: int
+    answer: tuple = None          # (X_k, Y_k, g or t) when the status is acceptable
+    lmi_max_eig: float = float("nan")
+
+    def describe(self):
+        return f"{self.solver}: {self.status}, max LMI eig {self.lmi_max_eig:.3g}"
+
+
+def _distinct(layout, XY):
+    """The (X(ρ_i), Y(ρ_i)) pairs that differ: one pair when X and Y are both constant.
+
+    Imposing the same coupling (or bound) constraint once per grid point would repeat an
+    identical PSD cone, which makes the interior-point KKT system singular (Clarabel stops
+    with a numerical error at its first iteration on the quadratic variant).
+    """
+    return XY[:1] if layout.n_X == 1 and layout.n_Y == 1 else XY
+
+
+def _stage1(layout, n, eps, regularisation, solver):
+    """Stage 1 (§3): maximise g − δ·mean_i tr(X(ρ_i) + Y(ρ_i))/(2n) subject to the LMIs of §2."""
+    Xk, Yk = _variables(layout, n)
+    g = cp.Variable(name="g")
+    constraints, XY = _lmi_constraints(layout, Xk, Yk, g, eps, reduce=False)
+    constraints.append(g >= 0.0)
+    XY = _distinct(layout, XY)
+    for X, Y in XY:
+        constraints.append(_coupling(X, Y, g, eps, n) >> 0)   # [X, gI; gI, Y] > 0 (with margin)
+    trace = sum(cp.trace(X) + cp.trace(Y) for X, Y in XY) / (2 * n * len(XY))
+    problem = cp.Problem(cp.Maximize(g - regularisation * trace), constraints)
+    status, solve_time, iterations = _solve(problem, solver)
+    if status not in _ACCEPTED_STATUSES or g.value is None or not g.value > 0.0:
+        return _Attempt(solver, status, solve_time, iterations)
+    Xv, Yv, gv = [x.value for x in Xk], [y.value for y in Yk], float(g.value)
+    return _Attempt(solver, status, solve_time, iterations, (Xv, Yv, gv),
+                    _check_lmis(layout, Xv, Yv, gv))
+
+
+def _stage2(layout, n, eps, g, bound, solver, robustness):
+    """Stage 2 (§3): g fixed; [X − tI, gI; gI, Y] > 0, t ≥ 0, X, Y ≤ cI; maximise t.
+
+    With g fixed the last block row of LMI-X and LMI-Y is constant, and they enter in their
+    Schur-complemented form (one block smaller, same constraint). ``robustness`` = τ > 0 adds
+    the LMIs at the grid-segment midpoints and the margin τ (see :func:`_all_lmis`,
+    :func:`_with_margin`); 0 is the plain stage 2 of LPV_SYNTHESIS.md §3.
+    """
+    Xk, Yk = _variables(layout, n)
+    t = cp.Variable(name="t")
+    constraints, XY = _lmi_constraints(layout, Xk, Yk, g, eps, reduce=True, extra=robustness,
+                                       midpoints=robustness > 0.0)
+    constraints.append(t >= 0.0)
+    I_n = np.eye(n)
+    for X, Y in _distinct(layout, XY):
+        constraints.append(_coupling(X - t * I_n, Y, g, eps, n) >> 0)   # [X − tI, gI; gI, Y] > 0
+        constraints.append(X << bound * I_n)                              # X ≤ cI
+        constraints.append(Y << bound * I_n)                              # Y ≤ cI
+    problem = cp.Problem(cp.Maximize(t), constraints)
+    status, solve_time, iterations = _solve(problem, solver)
+    if status not in _ACCEPTED_STATUSES or t.value is None:
+        return _Attempt(solver, status, solve_time, iterations)
+    Xv, Yv = [x.value for x in Xk], [y.value for y in Yk]
+    return _Attempt(solver, status, solve_time, iterations, (Xv, Yv, float(t.value)),
+                    _check_lmis(layout, Xv, Yv, g))
+
+
+def _check_arguments(plant, rate_bounds, basis, backoff, eps):
+    """Validate the arguments of :func:`synthesize`; return the rate vertices."""
+    if not isinstance(plant, GriddedPlant):
+        raise PlantDataError("plant must be a GriddedPlant")
+    if basis not in ("quadratic", "constant"):
+        raise ValueError(f"basis must be 'quadratic' or 'constant', got {basis!r}")
+    if not backoff >= 1.0:
+        raise ValueError(f"backoff must be >= 1, got {backoff!r}")
+    if not eps > 0.0:
+        raise ValueError(f"eps must be positive, got {eps!r}")
+    if rate_bounds is None:
+        return ()
+    lo, hi = (float(v) for v in rate_bounds)
+    if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+        raise ValueError(f"rate_bounds must be finite with lo <= hi, got {rate_bounds!r}")
+    if basis == "quadratic" and plant.n_grid < 3:
+        raise ValueError("a quadratic basis with rate bounds needs at least 3 grid points")
+    return (lo,) if lo == hi else (lo, hi)
+
+
+def synthesize(plant, rate_bounds=None, basis="quadratic", x_constant=False, backoff=1.2,
+               solver="CLARABEL", fallback="SCS", eps=1e-6, regularisation=1e-6, bound=1e2,
+               robustness=1e-2, balance="riccati"):
+    """Rate-bounded LPV H∞ output-feedback synthesis on a grid (LPV_SYNTHESIS.md §1–§5).
+
+    Parameters
+    ----------
+    plant : GriddedPlant
+        Generalised plant, inputs [w; u], outputs [e; y]; D12 full column rank and D21 full
+        row rank at every grid point.
+    rate_bounds : (float, float) or None
+        Box lo ≤ ρ̇ ≤ hi; its two ends are the rate vertices (ρ̇ = 0 is not one unless it is an
+        end). None gives the quadratic variant: constant X and Y, valid for arbitrary ρ̇.
+    basis : {"quadratic", "constant"}
+        Basis of X(ρ), Y(ρ): [1, θ, θ²] or [1]. Ignored (constant) when rate_bounds is None.
+        A single grid point with "constant" is the LTI H∞ problem.
+    x_constant : bool
+        Keep X constant (Y parameter-dependent): the controller does not depend on ρ̇.
+    backoff : float
+        Stage 2 fixes γ = backoff·γ_1; 1 skips stage 2 (controller at γ_1).
+    solver, fallback : str
+        cvxpy solver names; the fallback is tried when the first answer is not accepted
+        (None: no fallback).
+    eps : float
+        Relative strictness margin ε of the LMIs (§3): LMI + ε·diag(V + sI, I, …) ≤ 0 with V the
+        Lyapunov variable and s the scale of the constant term; coupling ≥ ε·diag(X + gI, Y + gI).
+    regularisation : float
+        Weight δ of the stage-1 regulariser δ·mean_i tr(X(ρ_i) + Y(ρ_i))/(2n).
+    bound : float
+        Stage-2 bound c on X and Y (raised to the stage-1 peak if that is larger, so that the
+        stage-1 answer stays feasible).
+    robustness : float
+        Stage-2 margin τ relative to the unit blocks of the LMIs, imposed together with the
+        LMIs at the grid-segment midpoints (Lagrange interpolation of the grid LMIs). Without
+        it the stage-2 LMIs are active at the grid points and the certificate fails between
+        them even for smooth plants. If this stage 2 is infeasible, the plain one (τ = 0, grid
+        points only, always feasible) is solved. 0 gives the plain stage 2 directly.
+    balance : {"riccati", "diagonal"}
+        State balancing of the pre-processing (plant_scaling.py).
+
+    Returns
+    -------
+    LpvSynthesisResult
+
+    Raises
+    ------
+    PlantDataError
+        Malformed plant or rank-deficient D12/D21.
+    SynthesisError
+        No solver answer passed the independent checks.
+    """
+    vertices = _check_arguments(plant, rate_bounds, basis, backoff, eps)
+    scaling = plant_scaling(plant, balance=balance)
+    points = tuple(scaling.normalise(plant.point(i)) for i in range(plant.n_grid))
+    varying = bool(vertices) and basis == "quadratic"
+    layout = _Layout(points=points, theta=scaling.theta(plant.rho), rho_half=scaling.rho_half,
+                     n_X=3 if varying and not x_constant else 1, n_Y=3 if varying else 1,
+                     vertices=vertices if varying else ())
+    solvers = [name for name in (solver, fallback) if name]
+    n = plant.n_x
+    check_rates = layout.vertices or (0.0,)
+    record = {"times_s": {}, "statuses": {}, "solvers": {}, "lmi_max_eig": {}}
+
+    def accept(stage, attempt, elapsed):
+        record["times_s"][stage] = elapsed
+        record["times_s"][stage + "_solver"] = attempt.solve_time_s
+        record["times_s"][stage + "_iterations"] = attempt.iterations
+        record["statuses"][stage] = attempt.status
+        record["solvers"][stage] = attempt.solver
+        record["lmi_max_eig"][stage] = attempt.lmi_max_eig
+
+    def result_for(Xk, Yk, gamma, t_margin):
+        return LpvSynthesisResult(
+            gamma_min=gamma_min, gamma=gamma, X_k=tuple(Xk), Y_k=tuple(Yk),
+            rate_vertices=layout.vertices, scaling=scaling, points=points, rho=plant.rho.copy(),
+            sizes=(plant.n_w, plant.n_u, plant.n_e, plant.n_y), t_margin=t_margin)
+
+    def certified(result):
+        return float(np.max(certificate_check(plant, result, plant.rho, check_rates)))
+
+    # Stage 1: minimum γ
+    start, tried = time.perf_counter(), []
+    for name in solvers:
+        attempt = _stage1(layout, n, eps, regularisation, name)
+        tried.append(attempt.describe())
+        if attempt.answer and attempt.lmi_max_eig < 0.0:
+            break
+    else:
+        raise SynthesisError("stage 1 failed (" + "; ".join(tried) + ")")
+    accept("stage1", attempt, time.perf_counter() - start)
+    X1, Y1, g1 = attempt.answer
+    gamma_min = 1.0 / g1
+
+    if backoff == 1.0:
+        result = result_for(X1, Y1, gamma_min, float("nan"))
+        certificate = certified(result)
+        if not certificate < 0.0:
+            raise SynthesisError(f"stage-1 controller fails the certificate ({certificate:.3g})")
+        return replace(result, certificate_max_eig=certificate, **record)
+
+    # Stage 2: back-off at γ = backoff·γ_1, well-conditioned X, Y
+    g2 = 1.0 / (backoff * gamma_min)
+    peak = max(np.linalg.eigvalsh(M)[-1] for M in itertools.chain.from_iterable(
+        _all_lmis(layout, X1, Y1, g1)[1]))
+    c = max(bound, 1.01 * peak)
+    start, tried = time.perf_counter(), []
+    variants = [(solvers[0], robustness)] if robustness > 0.0 else []
+    variants += [(name, 0.0) for name in solvers]
+    for name, tau in variants:
+        attempt = _stage2(layout, n, eps, g2, c, name, tau)
+        certificate = float("nan")
+        if attempt.answer and attempt.lmi_max_eig < 0.0:
+            Xk, Yk, t_margin = attempt.answer
+            result = result_for(Xk, Yk, 1.0 / g2, t_margin)
+            certificate = certified(result)
+        tried.append(f"{attempt.describe()} (robustness {tau:g}), certificate {certificate:.3g}")
+        if certificate < 0.0:
+            break
+    else:
+        raise SynthesisError("stage 2 failed (" + "; ".join(tried) + ")")
+    accept("stage2", attempt, time.perf_counter() - start)
+    return replace(result, certificate_max_eig=certificate, robustness=tau, **record)
