@@ -1,0 +1,62 @@
+"""Verification tools of the synthesis, exercised with a frozen-point (single-grid-point)
+controller at t = 40 s, and the scheduling-rate bounds computed the thesis' way."""
+
+import math
+
+import numpy as np
+import pytest
+
+from offline_synthesis.gridded_plant import GriddedPlant
+from offline_synthesis.interconnection import weighted_plant
+from offline_synthesis.lpv_synthesis import synthesize
+from offline_synthesis.pipeline import grid_times, rate_bounds_from_trajectory
+from offline_synthesis.verification import frozen_point_sweep, loop_margins, time_at_velocity
+from offline_synthesis.weights import SHIPPED
+from vega_plant.parameters import default_context
+
+
+@pytest.fixture(scope="module")
+def frozen_result():
+    m = weighted_plant(40.0, SHIPPED, default_context())
+    plant = GriddedPlant(np.array([m.rho_mps]), m.A[None], m.B[None], m.C[None], m.D[None],
+                         m.n_w, m.n_u, m.n_e, m.n_y)
+    return synthesize(plant, rate_bounds=None, basis="constant", backoff=1.0)
+
+
+def test_rate_bounds_like_the_thesis():
+    """Min/max over 1–100 s of a 6 s moving mean of dv/dt (thesis §4.3.2: [5.4, 36.4] m/s²
+    on its own trajectory); ours differ at the low end (thrust tail-off at 100 s)."""
+    lo, hi = rate_bounds_from_trajectory(default_context())
+    assert lo == pytest.approx(3.36, abs=0.05)
+    assert hi == pytest.approx(35.83, abs=0.05)
+    assert hi == pytest.approx(36.4, rel=0.03)
+
+
+def test_grids_and_time_map():
+    ctx = default_context()
+    assert list(grid_times("thesis", ctx)) == [10, 20, 30, 40, 50, 60, 70, 80, 90]
+    full = grid_times("full", ctx)
+    assert full[0] == pytest.approx(2.0, abs=1e-6) and full[-1] == pytest.approx(100.0, abs=1e-6)
+    v = np.interp(full, ctx.conditions.t_s, ctx.conditions.column("v_mps"))
+    assert np.allclose(np.diff(v), np.diff(v)[0], rtol=1e-3)        # evenly spaced in velocity
+    assert time_at_velocity(np.interp(47.0, ctx.conditions.t_s, ctx.conditions.column("v_mps")),
+                            ctx) == pytest.approx(47.0, abs=1e-6)
+    with pytest.raises(ValueError, match="expected one of thesis, full"):
+        grid_times("dense", ctx)
+
+
+def test_frozen_sweep_at_the_design_point(frozen_result):
+    sweep = frozen_point_sweep(frozen_result, SHIPPED, default_context(), [40.0, 41.0], 20.0)
+    assert sweep.all_stable
+    assert sweep.hinf[0] <= 1.01 * frozen_result.gamma
+    assert sweep.hinf[1] > 0 and math.isfinite(sweep.hinf[1])
+
+
+def test_loop_margins_of_a_stabilising_controller(frozen_result):
+    m = loop_margins(frozen_result, default_context(), 40.0, 20.0)
+    assert 0 < m.gm_low < 1.0          # conditionally stable: the rigid body diverges open loop
+    assert m.gm_high > 1.0
+    assert 0 < m.pm_deg < 180 and m.crossover_radps > 0
+    assert all(math.isfinite(g) for g in m.bending_gain_db)
+    d = m.as_dict()
+    assert d["gm_low_db"] < 0 < d["gm_high_db"]
