@@ -18,6 +18,8 @@ SHIPPED = Path(__file__).resolve().parent.parent / "ros2_ws/src/vega_gnc/config/
 
 def main():
     table = sys.argv[1] if len(sys.argv) > 1 else str(SHIPPED)
+    if not Path(table).exists():
+        sys.exit(f"bench_simulation: no controller table at {table} (pass one as the argument)")
     for name in ("thesis", "nominal"):
         for plant in ("linear", "nonlinear"):
             scenario = dataclasses.replace(load_scenario(name), plant=plant)
