@@ -13,7 +13,7 @@ import pytest
 
 from offline_synthesis.certificate import closed_loop, hinf_norm
 from offline_synthesis.frozen_point import frozen_point_gamma
-from offline_synthesis.gridded_plant import GriddedPlant, PlantPoint
+from offline_synthesis.gridded_plant import GriddedPlant
 from offline_synthesis.interconnection import GRID_TIMES_S, weighted_plant
 from offline_synthesis.lpv_synthesis import SynthesisError, synthesize
 from offline_synthesis.weights import WEIGHT_SETS
@@ -37,6 +37,6 @@ def test_single_point_lmi_matches_sb10ad(t):
     result = synthesize(plant, rate_bounds=None, basis="constant", backoff=1.0)
     assert result.gamma_min == pytest.approx(riccati, rel=0.01)
     K = result.controller(m.rho_mps, 0.0, plant_point=(m.A, m.B, m.C, m.D))
-    A, B, C, D = closed_loop(PlantPoint(m.A, m.B, m.C, m.D, *sizes), K)
+    A, B, C, D = closed_loop(m.as_point(), K)
     assert np.max(np.linalg.eigvals(A).real) < 0.0
     assert hinf_norm(A, B, C, D) <= 1.01 * result.gamma_min

@@ -129,6 +129,12 @@ class GeneralizedPlant:
         """u → y feedthrough."""
         return self.D[self.n_e:, self.n_w:]
 
+    def as_point(self):
+        """The same plant as the synthesis engine's :class:`~.gridded_plant.PlantPoint`."""
+        from .gridded_plant import PlantPoint
+
+        return PlantPoint(self.A, self.B, self.C, self.D, self.n_w, self.n_u, self.n_e, self.n_y)
+
     def close_loop(self, Ak, Bk, Ck, Dk) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Lower LFT F_l(P, K) with u = K y (thesis Eq. 2.47, Eq. 4.4).
 

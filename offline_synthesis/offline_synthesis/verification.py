@@ -20,7 +20,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from .certificate import certificate_check, closed_loop, hinf_norm
-from .gridded_plant import PlantPoint
 from .interconnection import plant_for_simulation, weighted_plant
 
 __all__ = ["time_at_velocity", "dense_certificate", "FrozenSweep", "frozen_point_sweep",
@@ -37,9 +36,8 @@ def time_at_velocity(v_mps, context):
     return np.interp(v_mps, v[moving], t[moving])
 
 
-def _point(t_s, weights, context, sizes):
-    g = weighted_plant(float(t_s), weights, context)
-    return PlantPoint(g.A, g.B, g.C, g.D, *sizes)
+def _point(t_s, weights, context):
+    return weighted_plant(float(t_s), weights, context).as_point()
 
 
 def dense_certificate(result, weights, context, factor: int = 4, controller: str = "exact"):
@@ -60,7 +58,7 @@ def dense_certificate(result, weights, context, factor: int = 4, controller: str
     def plant_at(r):
         key = float(r)
         if key not in cache:
-            cache[key] = _point(time_at_velocity(key, context), weights, context, result.sizes)
+            cache[key] = _point(time_at_velocity(key, context), weights, context)
         return cache[key]
 
     vertices = result.rate_vertices or (0.0,)
@@ -100,7 +98,7 @@ def frozen_point_sweep(result, weights, context, times_s, rate_mps2: float) -> F
     eig = np.empty(times.size)
     norms = np.empty(times.size)
     for i, (t, r) in enumerate(zip(times, rho)):
-        point = _point(t, weights, context, result.sizes)
+        point = _point(t, weights, context)
         K = result.controller(float(np.clip(r, result.rho[0], result.rho[-1])), rate_mps2)
         A, B, C, D = closed_loop(point, K)
         eig[i] = np.max(np.linalg.eigvals(A).real)
