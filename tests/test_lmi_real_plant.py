@@ -2,11 +2,7 @@
 point, the single-point LMI (constant basis, cvxpy + Clarabel) reproduces slycot sb10ad's
 optimal γ within 1 %, and its reconstructed controller closes a stable loop whose weighted H∞
 norm (SLICOT ab13dd, independent of the solver) is within 1 % of that γ.
-
-Known gap (strict xfail, so that a fix shows up as a failure to remove the mark): at t = 20,
-70 and 80 s Clarabel stops with a numerical error and SCS's answer fails the eigenvalue
-check; the thesis weight set fails likewise at 70, 80 and 90 s (measured, not run here to
-keep CI short). The formulation/scaling still needs work there (LPV_SYNTHESIS.md §7)."""
+"""
 
 import numpy as np
 import pytest
@@ -15,19 +11,12 @@ from offline_synthesis.certificate import closed_loop, hinf_norm
 from offline_synthesis.frozen_point import frozen_point_gamma
 from offline_synthesis.gridded_plant import GriddedPlant
 from offline_synthesis.interconnection import GRID_TIMES_S, weighted_plant
-from offline_synthesis.lpv_synthesis import SynthesisError, synthesize
+from offline_synthesis.lpv_synthesis import synthesize
 from offline_synthesis.weights import WEIGHT_SETS
 from vega_plant.parameters import default_context
 
 
-_KNOWN_NUMERICAL_FAILURES = (20.0, 70.0, 80.0)
-
-
-@pytest.mark.parametrize("t", [
-    pytest.param(t, marks=pytest.mark.xfail(
-        strict=True, raises=SynthesisError,
-        reason="single-point LMI numerics not yet robust here (Clarabel numerical error)"))
-    if t in _KNOWN_NUMERICAL_FAILURES else t for t in GRID_TIMES_S])
+@pytest.mark.parametrize("t", GRID_TIMES_S)
 def test_single_point_lmi_matches_sb10ad(t):
     m = weighted_plant(t, WEIGHT_SETS["shipped"], default_context())
     sizes = (m.n_w, m.n_u, m.n_e, m.n_y)

@@ -60,9 +60,11 @@ def closed_loop(plant_point, controller):
     u_map = np.linalg.solve(well_posed, np.hstack([D_K @ C2, C_K, D_K @ D21]))
     # y = C2 x + D21 w + D22 u
     y_map = np.hstack([C2, np.zeros((p.n_y, n_K)), D21]) + D22 @ u_map
-    A_cl = np.block([[p.A, np.zeros((n, n_K))], [np.zeros((n_K, n)), A_K]])
-    B_cl = np.vstack([B1, np.zeros((n_K, p.n_w))])
-    rows_x = np.hstack([A_cl, B_cl]) + np.vstack([B2 @ u_map, B_K @ y_map])
+    # ẋ = A x + B1 w + B2 u,  ẋ_K = A_K x_K + B_K y
+    open_loop = np.block([[p.A, np.zeros((n, n_K)), B1],
+                          [np.zeros((n_K, n)), A_K, np.zeros((n_K, p.n_w))]])
+    rows_x = open_loop + np.vstack([B2 @ u_map, B_K @ y_map])
+    # e = C1 x + D11 w + D12 u
     rows_e = np.hstack([C1, np.zeros((p.n_e, n_K)), D11]) + D12 @ u_map
     m = n + n_K
     return rows_x[:, :m], rows_x[:, m:], rows_e[:, :m], rows_e[:, m:]

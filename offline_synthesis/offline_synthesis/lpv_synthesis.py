@@ -20,16 +20,19 @@ Two additions to the recipe of §3, both found necessary on test plants:
 - the strictness margin ε is relative (ε·V on the Lyapunov block, V = X or Y, plus ε times the
   scale of the constant terms), because the solver's absolute error grows with ‖V‖ and an
   absolute ε let slightly infeasible answers through or rejected good ones;
-- stage 2 by default also imposes the LMIs at the midpoints of the grid segments (interpolated
-  from the grid LMIs) with a margin τ: the plain stage 2 leaves every LMI active at the grid
-  points, and the certificate then failed between grid points even for a smooth plant, for
-  the exact as well as for the interpolated controller.
+- stage 2 by default imposes the LMIs with a robustness margin τ (control and measurement
+  authority, performance channels, decay rate): the plain stage 2 leaves every LMI active at
+  the grid points, and the certificate then failed between grid points even for a smooth
+  plant, for the exact as well as for the interpolated controller. (LMIs at the segment
+  midpoints interpolated from the grid LMIs were tried too: they broke the solver on a
+  19-state plant whose bending frequencies move by more than their bandwidth between points.)
 """
 
 from __future__ import annotations
 
 import itertools
 import time
+import warnings
 from dataclasses import dataclass, field, replace
 
 import cvxpy as cp
@@ -46,11 +49,13 @@ _ACCEPTED_STATUSES = (cp.OPTIMAL, cp.OPTIMAL_INACCURATE)
 _SOLVER_OPTIONS = {
     # faer: multithreaded supernodal LDLᵀ (qdldl is ~20× slower on the 19-state problem);
     # chordal decomposition only splits the identity blocks and costs accuracy; the tolerances
-    # sit well below the relative strictness margin ε = 1e-6.
+    # sit below the relative strictness margin ε. Equilibration: see _solve.
     "CLARABEL": {"max_iter": 300, "direct_solve_method": "faer",
                  "chordal_decomposition_enable": False,
                  "tol_feas": 1e-7, "tol_gap_abs": 1e-7, "tol_gap_rel": 1e-6},
-    "SCS": {"eps_abs": 1e-7, "eps_rel": 1e-7, "max_iters": 100_000, "time_limit_secs": 600.0},
+    # first-order fallback: its answers rarely pass the eigenvalue checks on stiff plants, so
+    # its time is capped (it spent the whole cap on the 19-state VEGA problem)
+    "SCS": {"eps_abs": 1e-7, "eps_rel": 1e-7, "max_iters": 100_000, "time_limit_secs": 180.0},
 }
 
 
@@ -203,23 +208,11 @@ class _Layout:
     n_X: int                  # number of basis functions of X (1 or 3)
     n_Y: int
     vertices: tuple           # rate vertices ν (empty: no rate terms)
+    riccati_balanced: bool    # plant_scaling applied the Riccati balancing
 
     def rate_terms(self, n_basis):
         """The rate vertices for a variable with n_basis functions, or (None,) if constant."""
         return self.vertices if n_basis > 1 and self.vertices else (None,)
-
-    def midpoint_weights(self):
-        """Per grid segment, Lagrange weights [(j, w_j)] of the cubic (quadratic, linear with
-        fewer points) through the grid points nearest to the segment midpoint."""
-        theta = self.theta
-        segments = []
-        for i in range(theta.size - 1):
-            mid = 0.5 * (theta[i] + theta[i + 1])
-            nearest = sorted(np.argsort(np.abs(theta - mid), kind="stable")[:4])
-            weights = [np.prod([(mid - theta[k]) / (theta[j] - theta[k])
-                                for k in nearest if k != j]) for j in nearest]
-            segments.append(list(zip(nearest, weights)))
-        return segments
 
     def lmi_scales(self):
         """LMI scales for the strictness margin: max(1, ‖B2B2ᵀ‖), max(1, ‖C2ᵀC2‖)."""
@@ -244,54 +237,48 @@ def _rate(derivative, nu):
     return None if nu is None else nu * derivative
 
 
-def _all_lmis(layout, Xk, Yk, g, midpoints=False):
-    """Every LMI-X and LMI-Y of §2 as (block list, its Lyapunov variable, scale of its constant
-    term), plus (X(ρ_i), Y(ρ_i)) per grid point; for cvxpy expressions or numpy arrays.
+def _all_lmis(layout, Xk, Yk, g):
+    """Every LMI-X and LMI-Y of §2 with what its margins need, plus (X(ρ_i), Y(ρ_i)) per grid
+    point; for cvxpy expressions or numpy arrays.
 
-    With ``midpoints`` the list also holds, for every grid segment, the LMIs at the segment
-    midpoint estimated by Lagrange interpolation of the grid LMIs (affine in the variables):
-    for a plant that is smooth on the scale of the grid they hold the LMIs between grid points,
-    where nothing else constrains them (the plant between grid points is not known here).
+    Each LMI comes as (block list, V, W, s): its Lyapunov variable V (X or Y), the constant PSD
+    matrix W of its first block (B2B2ᵀ or C2ᵀC2) and the scale s = max(1, max_i ‖W_i‖).
     """
     s_X, s_Y = layout.lmi_scales()
-    per_point, XY = [], []
+    lmis, XY = [], []
     for p, theta_i in zip(layout.points, layout.theta):
         X, dX = _values_at(Xk, theta_i, layout.rho_half)
         Y, dY = _values_at(Yk, theta_i, layout.rho_half)
         XY.append((X, Y))
-        lmis_i = []
         for nu in layout.rate_terms(layout.n_X):
-            lmis_i.append((_lmi_x_blocks(p, X, _rate(dX, nu), g), X, s_X))   # LMI-X(ρ_i, ν) < 0
+            lmis.append((_lmi_x_blocks(p, X, _rate(dX, nu), g), X, p.B2 @ p.B2.T, s_X))
         for nu in layout.rate_terms(layout.n_Y):
-            lmis_i.append((_lmi_y_blocks(p, Y, _rate(dY, nu), g), Y, s_Y))   # LMI-Y(ρ_i, ν) < 0
-        per_point.append(lmis_i)
-    lmis = [lmi for lmis_i in per_point for lmi in lmis_i]
-    if midpoints:
-        for segment in layout.midpoint_weights():
-            for q, (_, _, scale) in enumerate(per_point[0]):
-                # L(ρ_mid, ν) ≈ Σ_j w_j L(ρ_j, ν)
-                terms = [(w, per_point[j][q]) for j, w in segment]
-                blocks = [[sum(w * lmi[0][r][c] for w, lmi in terms)
-                           for c in range(len(terms[0][1][0]))]
-                          for r in range(len(terms[0][1][0]))]
-                lmis.append((blocks, sum(w * lmi[1] for w, lmi in terms), scale))
+            lmis.append((_lmi_y_blocks(p, Y, _rate(dY, nu), g), Y, p.C2.T @ p.C2, s_Y))
     return lmis, XY
 
 
-def _with_margin(blocks, V, scale, eps, extra=0.0):
-    """Blocks of LMI + ε·diag(V + s·I, I, …) + τ·diag(s·I, I, …): the strictness margins.
+def _with_margin(blocks, V, W, scale, eps, tau=0.0):
+    """Blocks of LMI + margin; ``LMI + margin ≤ 0`` is the constraint.
 
-    The ε part (§3) grows with the Lyapunov variable V (a decay-rate margin of ε/2, invariant
-    under state scaling) plus ε·s with s the scale of the constant term, and ε·I on the identity
-    blocks. The optional τ = ``extra`` part (stage 2) is a plain margin relative to the unit
-    blocks, without a decay-rate demand that slow weight poles could not meet.
-    ``LMI + margin ≤ 0`` is the constraint.
+    margin = ε·diag(V + s·I, I, …) + τ·diag(W + V/4, I, …):
+
+    - ε (§3, both stages) makes the LMI strict above the solver's error: relative to the
+      Lyapunov variable V (a decay-rate margin of ε/2, invariant under state scaling, since the
+      solver's absolute error grows with ‖V‖) and to the scale s of the constant term;
+    - τ (stage 2 only) is a robustness margin: the LMI then still holds with the control
+      (W = B2B2ᵀ) or measurement (W = C2ᵀC2) term shrunk by the factor 1 − τ, the performance
+      channels tightened by τ and the decay rate raised by τ/8 (kept small: uncontrollable or
+      unobservable weight modes slower than that make the margin infeasible). It keeps the
+      certificate negative between grid points, where the plain stage 2 (every LMI active at
+      the grid points) fails even for smooth plants.
     """
     out = [list(row) for row in blocks]
     n = blocks[0][0].shape[0]
-    out[0][0] = out[0][0] + eps * V + (eps + extra) * scale * np.eye(n)
+    out[0][0] = out[0][0] + eps * (V + scale * np.eye(n))
+    if tau:
+        out[0][0] = out[0][0] + tau * (W + 0.25 * V)
     for k in range(1, len(out)):
-        out[k][k] = out[k][k] + (eps + extra) * np.eye(out[k][k].shape[0])
+        out[k][k] = out[k][k] + (eps + tau) * np.eye(out[k][k].shape[0])
     return out
 
 
@@ -307,23 +294,37 @@ def _schur_last(blocks):
             for i in range(len(blocks) - 1)]
 
 
-def _lmi_constraints(layout, Xk, Yk, g, eps, reduce, extra=0.0, midpoints=False):
-    """cvxpy constraints LMI-X, LMI-Y (with margins) at every (ρ_i, ν) — and at the segment
-    midpoints if asked — plus X(ρ_i), Y(ρ_i) per grid point."""
-    lmis, XY = _all_lmis(layout, Xk, Yk, g, midpoints)
+def _lmi_constraints(layout, Xk, Yk, g, eps, reduce, tau=0.0):
+    """cvxpy constraints LMI-X, LMI-Y (with margins) at every (ρ_i, ν); X(ρ_i), Y(ρ_i) per point."""
+    lmis, XY = _all_lmis(layout, Xk, Yk, g)
     constraints = []
-    for blocks, V, scale in lmis:
-        blocks = _with_margin(blocks, V, scale, eps, extra)
+    for blocks, V, W, scale in lmis:
+        blocks = _with_margin(blocks, V, W, scale, eps, tau)
         if reduce:
             blocks = _schur_last(blocks)
-        constraints.append(cp.bmat(blocks) << 0)                  # LMI(ρ, ν) + margin ≤ 0
+        constraints.append(cp.bmat(blocks) << 0)                  # LMI(ρ_i, ν) + margin ≤ 0
     return constraints, XY
 
 
-def _solve(problem, solver):
-    """Solve with ``solver``; return (status, solver time, iterations), never raising."""
+def _solve(problem, solver, layout):
+    """Solve with ``solver``; return (status, solver time, iterations), never raising.
+
+    Clarabel settings that depend on the problem: no Ruiz equilibration when the plant is
+    Riccati-balanced (equilibrating on top of it made Clarabel stop at iteration 0 with a
+    numerical error at 3 of the 9 grid points of the VEGA weighted plant, and with it off all
+    9 points match sb10ad within 1.1 %); single-threaded for small plants (n < 12), where
+    threads do not pay and only add to the contention on a loaded two-core machine.
+    """
+    options = dict(_SOLVER_OPTIONS.get(solver, {}))
+    if solver == "CLARABEL":
+        options["equilibrate_enable"] = not layout.riccati_balanced
+        if layout.points[0].n_x < 12:
+            options["max_threads"] = 1
     try:
-        problem.solve(solver=solver, **_SOLVER_OPTIONS.get(solver, {}))
+        with warnings.catch_warnings():
+            # "Solution may be inaccurate": such answers go through the independent checks
+            warnings.filterwarnings("ignore", message="Solution may be inaccurate")
+            problem.solve(solver=solver, **options)
     except cp.error.SolverError:
         return "solver_error", float("nan"), 0
     stats = problem.solver_stats
@@ -334,7 +335,7 @@ def _check_lmis(layout, Xk, Yk, g):
     """Largest eigenvalue over all LMIs (coupling as −[X, gI; gI, Y]) evaluated in numpy."""
     lmis, XY = _all_lmis(layout, Xk, Yk, g)
     worst = -np.inf
-    for blocks, _, _ in lmis:
+    for blocks, *_ in lmis:
         L = np.block(blocks)
         worst = max(worst, np.linalg.eigvalsh(0.5 * (L + L.T))[-1])
     for X, Y in XY:
@@ -393,7 +394,7 @@ def _stage1(layout, n, eps, regularisation, solver):
         constraints.append(_coupling(X, Y, g, eps, n) >> 0)   # [X, gI; gI, Y] > 0 (with margin)
     trace = sum(cp.trace(X) + cp.trace(Y) for X, Y in XY) / (2 * n * len(XY))
     problem = cp.Problem(cp.Maximize(g - regularisation * trace), constraints)
-    status, solve_time, iterations = _solve(problem, solver)
+    status, solve_time, iterations = _solve(problem, solver, layout)
     if status not in _ACCEPTED_STATUSES or g.value is None or not g.value > 0.0:
         return _Attempt(solver, status, solve_time, iterations)
     Xv, Yv, gv = [x.value for x in Xk], [y.value for y in Yk], float(g.value)
@@ -405,14 +406,12 @@ def _stage2(layout, n, eps, g, bound, solver, robustness):
     """Stage 2 (§3): g fixed; [X − tI, gI; gI, Y] > 0, t ≥ 0, X, Y ≤ cI; maximise t.
 
     With g fixed the last block row of LMI-X and LMI-Y is constant, and they enter in their
-    Schur-complemented form (one block smaller, same constraint). ``robustness`` = τ > 0 adds
-    the LMIs at the grid-segment midpoints and the margin τ (see :func:`_all_lmis`,
-    :func:`_with_margin`); 0 is the plain stage 2 of LPV_SYNTHESIS.md §3.
+    Schur-complemented form (one block smaller, same constraint). ``robustness`` is the margin
+    τ of :func:`_with_margin`; 0 gives the plain stage 2 of LPV_SYNTHESIS.md §3.
     """
     Xk, Yk = _variables(layout, n)
     t = cp.Variable(name="t")
-    constraints, XY = _lmi_constraints(layout, Xk, Yk, g, eps, reduce=True, extra=robustness,
-                                       midpoints=robustness > 0.0)
+    constraints, XY = _lmi_constraints(layout, Xk, Yk, g, eps, reduce=True, tau=robustness)
     constraints.append(t >= 0.0)
     I_n = np.eye(n)
     for X, Y in _distinct(layout, XY):
@@ -420,7 +419,7 @@ def _stage2(layout, n, eps, g, bound, solver, robustness):
         constraints.append(X << bound * I_n)                              # X ≤ cI
         constraints.append(Y << bound * I_n)                              # Y ≤ cI
     problem = cp.Problem(cp.Maximize(t), constraints)
-    status, solve_time, iterations = _solve(problem, solver)
+    status, solve_time, iterations = _solve(problem, solver, layout)
     if status not in _ACCEPTED_STATUSES or t.value is None:
         return _Attempt(solver, status, solve_time, iterations)
     Xv, Yv = [x.value for x in Xk], [y.value for y in Yk]
@@ -450,7 +449,7 @@ def _check_arguments(plant, rate_bounds, basis, backoff, eps):
 
 def synthesize(plant, rate_bounds=None, basis="quadratic", x_constant=False, backoff=1.2,
                solver="CLARABEL", fallback="SCS", eps=1e-6, regularisation=1e-6, bound=1e2,
-               robustness=1e-2, balance="riccati"):
+               robustness=3e-2, balance="riccati"):
     """Rate-bounded LPV H∞ output-feedback synthesis on a grid (LPV_SYNTHESIS.md §1–§5).
 
     Parameters
@@ -480,11 +479,11 @@ def synthesize(plant, rate_bounds=None, basis="quadratic", x_constant=False, bac
         Stage-2 bound c on X and Y (raised to the stage-1 peak if that is larger, so that the
         stage-1 answer stays feasible).
     robustness : float
-        Stage-2 margin τ relative to the unit blocks of the LMIs, imposed together with the
-        LMIs at the grid-segment midpoints (Lagrange interpolation of the grid LMIs). Without
-        it the stage-2 LMIs are active at the grid points and the certificate fails between
-        them even for smooth plants. If this stage 2 is infeasible, the plain one (τ = 0, grid
-        points only, always feasible) is solved. 0 gives the plain stage 2 directly.
+        Stage-2 robustness margin τ (``_with_margin``: control/measurement terms × (1 − τ),
+        performance channels tightened by τ, decay rate +τ/8). Without it every stage-2 LMI is
+        active at the grid points and the certificate fails between them even for smooth
+        plants. If this stage 2 is infeasible, the plain one (τ = 0, feasible by construction)
+        is solved; 0 gives the plain stage 2 directly.
     balance : {"riccati", "diagonal"}
         State balancing of the pre-processing (plant_scaling.py).
 
@@ -505,7 +504,8 @@ def synthesize(plant, rate_bounds=None, basis="quadratic", x_constant=False, bac
     varying = bool(vertices) and basis == "quadratic"
     layout = _Layout(points=points, theta=scaling.theta(plant.rho), rho_half=scaling.rho_half,
                      n_X=3 if varying and not x_constant else 1, n_Y=3 if varying else 1,
-                     vertices=vertices if varying else ())
+                     vertices=vertices if varying else (),
+                     riccati_balanced=scaling.balance == "riccati")
     solvers = [name for name in (solver, fallback) if name]
     n = plant.n_x
     check_rates = layout.vertices or (0.0,)
