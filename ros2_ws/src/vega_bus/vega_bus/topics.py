@@ -1,0 +1,67 @@
+"""Topic names, message types and QoS of the VEGA TVC node graph (one source of truth).
+
+Every node, the recorder, the bag checker and the replay tool use these names; a node may
+still be remapped with ``--ros-args -r OLD:=NEW``. Message types are given as rosidl names
+(``pkg/msg/Type``) so that this module imports without rclpy; :func:`message_class` loads
+the generated Python class when a node needs it.
+
+Data topics are RELIABLE, VOLATILE, KEEP_LAST with a deep queue: the lockstep keeps at most a
+few frames in flight, so the depth only has to cover a slow subscriber, and nothing is ever
+dropped silently (a sequence gap fails the run). ``/clock`` is published RELIABLE depth 1 so
+that both BEST_EFFORT (rclpy's default /clock subscription) and RELIABLE readers match.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import NamedTuple
+
+__all__ = ["Topic", "TRUTH", "INS", "TVC_CMD", "ACTUATOR", "CLOCK", "DATA_TOPICS",
+           "ALL_TOPICS", "DATA_QUEUE_DEPTH", "message_class", "data_qos", "clock_qos"]
+
+DATA_QUEUE_DEPTH = 1000  # messages; ≥ 10 s of the fastest topic (100 Hz) in flight
+
+
+class Topic(NamedTuple):
+    """A topic of the graph: name, rosidl type name, publisher node, nominal rate [Hz]."""
+
+    name: str
+    type_name: str
+    publisher: str
+    rate_hz: float
+
+
+# Nominal rates at the default timing (vehicle.yaml: 10 ms exchange frame, INS 100 Hz,
+# controller 50 Hz); the actual rates follow the scenario's timing.
+TRUTH = Topic("/vega/truth", "vega_msgs/msg/VehicleState", "plant", 100.0)
+INS = Topic("/vega/ins", "vega_msgs/msg/InsMeasurement", "ins_sensor", 100.0)
+TVC_CMD = Topic("/vega/tvc_cmd", "vega_msgs/msg/TvcCommand", "tvc_controller", 50.0)
+ACTUATOR = Topic("/vega/actuator", "vega_msgs/msg/ActuatorState", "tvc_actuator", 100.0)
+CLOCK = Topic("/clock", "rosgraph_msgs/msg/Clock", "plant", 100.0)
+
+DATA_TOPICS = (TRUTH, INS, TVC_CMD, ACTUATOR)
+ALL_TOPICS = DATA_TOPICS + (CLOCK,)
+
+
+def message_class(type_name: str):
+    """The rosidl-generated Python class of ``pkg/msg/Type`` (imports the package)."""
+    package, kind, name = type_name.split("/")
+    return getattr(importlib.import_module(f"{package}.{kind}"), name)
+
+
+def data_qos():
+    """QoS profile of the data topics (RELIABLE, VOLATILE, KEEP_LAST DATA_QUEUE_DEPTH)."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=DATA_QUEUE_DEPTH,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+def clock_qos():
+    """QoS profile of /clock (RELIABLE, KEEP_LAST 1)."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
