@@ -142,7 +142,8 @@ def test_vega_sets_environment_from_bare_shell(tmp_path):
 @pytest.mark.ros
 def test_vega_node_runs_executable_in_project_environment(tmp_path, probe_prefix):
     """``vega node PKG EXE ARGS`` finds EXE through the ament index, passes ARGS through, and
-    the node's rclpy context runs on the invocation's domain with LOCALHOST discovery."""
+    the node's rclpy context runs with LOCALHOST discovery on the hand-start domain 101 (the
+    same for every terminal, so that hand-started nodes meet; never a round-robin id)."""
     env = _bare_env(AMENT_PREFIX_PATH=str(probe_prefix), ROS_LOCALHOST_ONLY="1", ROS_DOMAIN_ID="")
     arguments = ["--ros-args", "-r", "__node:=renamed_probe", "--log-level", "warn"]
     result = _run([VEGA, "node", "vega_envprobe", "probe", *arguments], env, cwd=tmp_path)
@@ -152,9 +153,9 @@ def test_vega_node_runs_executable_in_project_environment(tmp_path, probe_prefix
     assert report["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
     assert report["ROS_LOCALHOST_ONLY"] is None
     assert report["context_domain_id"] == int(report["ROS_DOMAIN_ID"])
-    assert rosenv.DOMAIN_ID_MIN <= report["context_domain_id"] <= rosenv.DOMAIN_ID_MAX
+    assert report["context_domain_id"] == rosenv.HAND_START_DOMAIN_ID == 101
     assert report["node_name"] == "renamed_probe"
-    assert f"ROS_DOMAIN_ID={report['ROS_DOMAIN_ID']} picked" in result.stderr
+    assert "ROS_DOMAIN_ID=101 (the default for nodes started by hand" in result.stderr
 
 
 @pytest.mark.ros
@@ -164,7 +165,7 @@ def test_vega_node_keeps_caller_domain(tmp_path, probe_prefix):
     result = _run([VEGA, "node", "vega_envprobe", "probe"], env, cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout)["context_domain_id"] == 57
-    assert "picked" not in result.stderr
+    assert "ROS_DOMAIN_ID" not in result.stderr
 
 
 def test_vega_env_runs_command_in_project_environment(tmp_path):
@@ -216,17 +217,19 @@ def test_bad_caller_domain_id_is_rejected(tmp_path, value):
 # vega_sil.rosenv ----------------------------------------------------------------------------------
 
 def test_pick_domain_id_cycles_through_all_ids(tmp_path):
-    """Round robin over 1..101: consecutive picks differ and 101 picks use every id once."""
+    """Round robin over 1..100: consecutive picks differ, 100 picks use every id once, and the
+    hand-start id 101 is never handed out."""
     state = tmp_path / "counter"
-    picks = [rosenv.pick_domain_id(state) for _ in range(rosenv.DOMAIN_ID_MAX)]
-    assert sorted(picks) == list(range(rosenv.DOMAIN_ID_MIN, rosenv.DOMAIN_ID_MAX + 1))
+    picks = [rosenv.pick_domain_id(state) for _ in range(100)]
+    assert sorted(picks) == list(range(rosenv.DOMAIN_ID_MIN, rosenv.HAND_START_DOMAIN_ID))
+    assert rosenv.HAND_START_DOMAIN_ID == 101
     assert rosenv.pick_domain_id(state) == picks[0]
 
 
 def test_pick_domain_id_without_counter_file(tmp_path):
     """An unusable counter file falls back to an id derived from the process id."""
     domain_id = rosenv.pick_domain_id(tmp_path / "missing" / "counter")
-    assert domain_id == rosenv.DOMAIN_ID_MIN + os.getpid() % 101
+    assert domain_id == rosenv.DOMAIN_ID_MIN + os.getpid() % 100
 
 
 def test_ros_environment_overrides_and_keeps():

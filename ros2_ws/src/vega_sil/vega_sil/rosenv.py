@@ -5,7 +5,8 @@ One source of truth for the environment rules of ``../shared/design/ENVIRONMENT.
 * discovery never leaves the machine: ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, with
   ``ROS_LOCALHOST_ONLY`` (deprecated in Jazzy) and ``ROS_STATIC_PEERS`` (extra peers, possibly
   remote) removed;
-* every run gets its own ``ROS_DOMAIN_ID`` in 1..101 unless the caller chose one;
+* every run gets its own ``ROS_DOMAIN_ID`` in 1..100 unless the caller chose one; 101 is
+  reserved for nodes started by hand (``vega node``), which must all meet on one id;
 * the library path of the ROS 2 wheels stays consistent with the wheels' bootstrap guard, and
   the ament index of the virtual environment stays on ``AMENT_PREFIX_PATH``.
 
@@ -26,6 +27,7 @@ from pathlib import Path
 __all__ = [
     "DOMAIN_ID_MIN",
     "DOMAIN_ID_MAX",
+    "HAND_START_DOMAIN_ID",
     "DomainIdError",
     "pick_domain_id",
     "ros_environment",
@@ -38,6 +40,11 @@ DOMAIN_ID_MIN = 1
 DOMAIN_ID_MAX = 101
 """Largest ROS_DOMAIN_ID whose Fast DDS ports are safe on Linux."""
 
+HAND_START_DOMAIN_ID = DOMAIN_ID_MAX
+"""ROS_DOMAIN_ID of nodes started by hand with ``vega node`` when the caller exported none:
+one fixed id, so that nodes started in separate terminals meet; :func:`pick_domain_id` never
+hands it out, so automated runs (tests, ``vega sil run``) never meet hand-started nodes."""
+
 _BOOTSTRAP_GUARD = "_ROS_WHEELS_BOOTSTRAP_COMPLETE"
 _REMOVED_VARIABLES = ("ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS")
 
@@ -49,9 +56,10 @@ class DomainIdError(ValueError):
 def pick_domain_id(state_file=None):
     """Pick a ROS_DOMAIN_ID for a new run.
 
-    The ids are handed out round robin over 1..101 from a per-user counter file, advanced
+    The ids are handed out round robin over 1..100 (101 is :data:`HAND_START_DOMAIN_ID`)
+    from a per-user counter file, advanced
     under an exclusive lock, so two runs started one after the other (or concurrently) get
-    different ids; an id comes back only after 100 newer picks on this machine.
+    different ids; an id comes back only after 99 newer picks on this machine.
 
     Parameters
     ----------
@@ -61,16 +69,16 @@ def pick_domain_id(state_file=None):
     Returns
     -------
     int
-        A domain id in ``DOMAIN_ID_MIN..DOMAIN_ID_MAX``.
+        A domain id in ``DOMAIN_ID_MIN..HAND_START_DOMAIN_ID - 1``.
 
     Notes
     -----
     If the counter file cannot be used (read-only or missing directory, no locking), the id is
-    derived from the process id instead: ``1 + pid % 101``.
+    derived from the process id instead: ``1 + pid % 100``.
     """
     if state_file is None:
         state_file = Path(tempfile.gettempdir()) / f"vega-ros-domain-id.{os.getuid()}"
-    span = DOMAIN_ID_MAX - DOMAIN_ID_MIN + 1
+    span = HAND_START_DOMAIN_ID - DOMAIN_ID_MIN
     try:
         with os.fdopen(os.open(state_file, os.O_RDWR | os.O_CREAT, 0o600), "r+") as counter:
             fcntl.flock(counter, fcntl.LOCK_EX)

@@ -66,10 +66,13 @@ def find_executable(package, executable):
 def _run(args):
     """Replace this process by the executable, in the project's ROS environment."""
     path = find_executable(args.package, args.executable)
-    env = rosenv.ros_environment()
     if args.ros_domain_id_picked:
-        print(f"vega node: ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']} picked for this node; export "
-              f"ROS_DOMAIN_ID=N (1..101) in every terminal to make nodes meet", file=sys.stderr)
+        env = rosenv.ros_environment(domain_id=rosenv.HAND_START_DOMAIN_ID)
+        print(f"vega node: ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']} (the default for nodes started "
+              f"by hand; export ROS_DOMAIN_ID=N, 1..101, in every terminal to choose another)",
+              file=sys.stderr)
+    else:
+        env = rosenv.ros_environment()
     sys.stdout.flush()
     sys.stderr.flush()
     os.execve(path, [path, *args.arguments], env)
@@ -81,7 +84,8 @@ def register(subparsers):
         "node", help="start a ROS 2 executable (the equivalent of 'ros2 run')",
         description="Start executable EXE of ROS 2 package PKG, found through the ament index "
                     "like 'ros2 run PKG EXE', with the project's ROS environment (LOCALHOST "
-                    "discovery; ROS_DOMAIN_ID from the caller, else picked for this node).")
+                    "discovery; ROS_DOMAIN_ID from the caller, else 101, the same for every "
+                    "node started by hand, so that nodes in separate terminals meet).")
     parser.add_argument("package", metavar="PKG", help="ROS 2 package name")
     parser.add_argument("executable", metavar="EXE", help="executable of the package")
     parser.add_argument("arguments", nargs=argparse.REMAINDER, metavar="ARGS",
