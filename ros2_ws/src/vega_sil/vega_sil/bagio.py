@@ -1,0 +1,504 @@
+"""Run bags: the one typestore, the writer the recorder uses, and the reader of the checks.
+
+A *run bag* is one rosbag2 directory (``metadata.yaml`` + one MCAP file) written with
+``rosbags`` the way Jazzy writes its own bags (format version 9, MCAP storage), holding:
+
+* the topics of :mod:`vega_bus.topics` (``/vega/truth``, ``/vega/ins``, ``/vega/tvc_cmd``,
+  ``/vega/actuator``, ``/clock``) with the QoS the publishers offer;
+* every message as the raw CDR bytes the recorder received, with log time = the message's
+  sim-time stamp in nanoseconds (``header.stamp``; ``clock`` for ``/clock``);
+* custom metadata (rosbag2 ``custom_data``, string → string) with at least the keys of
+  :data:`REQUIRED_METADATA`: scenario name and YAML text, seed, controller-table path and
+  SHA-256, git revision (:func:`run_metadata` builds them).
+
+Pieces:
+
+* :func:`vega_typestore` — the typestore (Jazzy's plus the vega_msgs types registered from
+  the installed ``.msg`` files found through the ament index); every reader, writer and
+  replay tool uses this one.
+* :class:`RunBagWriter` — open → :meth:`~RunBagWriter.write` (topic, log time, raw bytes) →
+  close; a context manager that closes the bag on error too, so that what was written stays
+  readable.
+* :func:`read_run_bag` — the whole bag as per-topic numpy columns (:class:`TopicColumns`) plus
+  the custom metadata (:class:`RunBag`). A missing, corrupt or foreign bag (no vega topic, or
+  a vega topic with another type) raises :class:`BagError`, a ``ValueError`` with one line.
+
+Columns (:class:`TopicColumns`): ``log_time_ns``; ``stamp_ns`` (header stamp; ``clock`` of
+/clock); ``<name>_ns`` for other ``builtin_interfaces/Time`` fields (``sample_stamp_ns``);
+scalars as (N,) arrays (``seq``, ``pitch_rad``, …); fixed-size arrays as (N, k); variable-size
+arrays (the actuator's sub-frame samples) flattened in message order, with their per-message
+lengths in :attr:`TopicColumns.counts`. ``header.frame_id`` is not kept.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import subprocess
+from contextlib import contextmanager, suppress
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any, Iterator, Mapping
+
+import numpy as np
+
+from vega_bus import topics
+
+__all__ = ["BagError", "META_SCENARIO", "META_SCENARIO_YAML", "META_SEED",
+           "META_CONTROLLER_TABLE", "META_CONTROLLER_TABLE_SHA256", "META_GIT_REVISION",
+           "REQUIRED_METADATA", "vega_typestore", "topic_qos", "run_metadata",
+           "git_revision", "file_sha256", "RunBagWriter", "TopicColumns", "RunBag",
+           "read_run_bag", "iter_raw_messages"]
+
+# custom_data keys (rosbag2 metadata; values are strings)
+META_SCENARIO = "vega.scenario"
+META_SCENARIO_YAML = "vega.scenario_yaml"
+META_SEED = "vega.seed"
+META_CONTROLLER_TABLE = "vega.controller_table"
+META_CONTROLLER_TABLE_SHA256 = "vega.controller_table_sha256"
+META_GIT_REVISION = "vega.git_revision"
+REQUIRED_METADATA = (META_SCENARIO, META_SCENARIO_YAML, META_SEED, META_CONTROLLER_TABLE,
+                     META_CONTROLLER_TABLE_SHA256, META_GIT_REVISION)
+"""custom_data keys every run bag carries (the writer refuses to open without them)."""
+
+_VEGA_TYPES = tuple(sorted({t.type_name for t in topics.DATA_TOPICS}))
+
+
+class BagError(ValueError):
+    """A bag that cannot be used: missing, corrupt, foreign or not a run bag (one line)."""
+
+
+# ----------------------------------------------------------------------------- typestore
+def _msg_dir() -> Path:
+    """``share/vega_msgs/msg`` of the installed vega_msgs (ament index)."""
+    try:
+        from ament_index_python.packages import (PackageNotFoundError,
+                                                 get_package_share_directory)
+    except ImportError as exc:  # pragma: no cover - the environment always has it
+        raise BagError(f"cannot locate vega_msgs: {exc}") from None
+    try:
+        return Path(get_package_share_directory("vega_msgs")) / "msg"
+    except (PackageNotFoundError, LookupError, OSError) as exc:
+        raise BagError(f"cannot locate the vega_msgs message files in the ament index "
+                       f"({exc}); run `make setup` and use the project environment "
+                       f"(vega-env)") from None
+
+
+@lru_cache(maxsize=1)
+def vega_typestore():
+    """rosbags' Jazzy typestore with the vega_msgs types registered (built once, cached).
+
+    The definitions are the installed ``share/vega_msgs/msg/*.msg`` files (the same files
+    rosidl generated the rclpy classes from: identical CDR layout and RIHS01 hash).
+
+    Raises
+    ------
+    BagError
+        If vega_msgs is not installed or a message file is unreadable.
+    """
+    from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    msg_dir = _msg_dir()
+    types: dict[str, Any] = {}
+    for type_name in _VEGA_TYPES:
+        path = msg_dir / f"{type_name.rsplit('/', 1)[1]}.msg"
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise BagError(f"{path}: cannot read message definition ({exc})") from None
+        types.update(get_types_from_msg(text, type_name))
+    store.register(types)
+    return store
+
+
+def topic_qos(topic: topics.Topic):
+    """The QoS the publishers of ``topic`` offer, as a rosbags ``Qos`` (for the metadata)."""
+    from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
+                                    QosReliability, QosTime)
+
+    depth = 1 if topic is topics.CLOCK else topics.DATA_QUEUE_DEPTH
+    # "infinite" deadline/lifespan/lease as Jazzy's recorder stores what the graph reports
+    # for rclpy's default profile (RMW_DURATION_INFINITE = 2^63 - 1 ns)
+    infinite = QosTime(9_223_372_036, 854_775_807)
+    return Qos(QosHistory.KEEP_LAST, depth, QosReliability.RELIABLE, QosDurability.VOLATILE,
+               infinite, infinite, QosLiveliness.AUTOMATIC, infinite, False)
+
+
+# ----------------------------------------------------------------------------- metadata
+def file_sha256(path: str | Path) -> str:
+    """SHA-256 (hex) of a file's bytes."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def git_revision(where: str | Path | None = None) -> str:
+    """Commit of the working tree holding ``where`` (default: this package's source).
+
+    ``<sha>``; ``<sha>+dirty`` if tracked files differ from it; ``unknown`` outside git.
+    """
+    cwd = Path(where) if where is not None else Path(__file__).resolve().parent
+    try:
+        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=cwd, capture_output=True,
+                             text=True, timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
+                               cwd=cwd, capture_output=True, text=True, timeout=30,
+                               check=True).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return f"{sha}+dirty" if dirty else sha
+
+
+def run_metadata(scenario_name: str, scenario_yaml: str, seed: int,
+                 controller_table: str | Path, *, git_rev: str | None = None,
+                 extra: Mapping[str, str] | None = None) -> dict[str, str]:
+    """The custom metadata of a run bag (:data:`REQUIRED_METADATA` keys, plus ``extra``).
+
+    Parameters
+    ----------
+    scenario_name, scenario_yaml
+        Scenario name and the full YAML text it was loaded from.
+    seed
+        Scenario seed in force.
+    controller_table
+        Path of the controller table file (its SHA-256 is computed here).
+    git_rev
+        Git revision (default: :func:`git_revision`).
+    extra
+        More string entries (e.g. ``vega.plant``), added as they are.
+    """
+    table = Path(controller_table)
+    meta = {
+        META_SCENARIO: str(scenario_name),
+        META_SCENARIO_YAML: str(scenario_yaml),
+        META_SEED: str(int(seed)),
+        META_CONTROLLER_TABLE: str(table.resolve()),
+        META_CONTROLLER_TABLE_SHA256: file_sha256(table),
+        META_GIT_REVISION: git_revision() if git_rev is None else str(git_rev),
+    }
+    meta.update({str(k): str(v) for k, v in (extra or {}).items()})
+    return meta
+
+
+# ----------------------------------------------------------------------------- writer
+class RunBagWriter:
+    """Writer of one run bag (rosbag2 v9, MCAP) with the topics of :mod:`vega_bus.topics`.
+
+    Parameters
+    ----------
+    path
+        Bag directory to create (must not exist).
+    metadata
+        custom_data entries, string → string (ints and floats are converted); must hold
+        every key of :data:`REQUIRED_METADATA`.
+
+    Examples
+    --------
+    >>> with RunBagWriter(out, run_metadata(...)) as bag:        # doctest: +SKIP
+    ...     bag.write("/vega/ins", stamp_ns, raw_cdr_bytes)
+
+    Notes
+    -----
+    The bag is created by :meth:`open` (called by ``with``). :meth:`close` writes the MCAP
+    summary and ``metadata.yaml``; leaving the ``with`` block closes it even when an exception
+    is raised, so that the messages written so far stay readable.
+    """
+
+    def __init__(self, path: str | Path, metadata: Mapping[str, Any]):
+        self.path = Path(path)
+        meta = {}
+        for key, value in metadata.items():
+            if not isinstance(key, str) or isinstance(value, bool) or \
+                    not isinstance(value, (str, int, float)):
+                raise ValueError(f"bag metadata {key!r}: keys and values must be strings, "
+                                 f"got {type(value).__name__}")
+            meta[key] = str(value)
+        missing = [k for k in REQUIRED_METADATA if k not in meta]
+        if missing:
+            raise ValueError(f"bag metadata: missing {', '.join(missing)}")
+        self.metadata = meta
+        self._writer = None
+        self._connections: dict[str, Any] = {}
+        self.counts: dict[str, int] = {}
+
+    @property
+    def is_open(self) -> bool:
+        """True between :meth:`open` and :meth:`close`."""
+        return self._writer is not None
+
+    def open(self) -> "RunBagWriter":
+        """Create the bag directory and add one connection per topic of the graph.
+
+        Raises
+        ------
+        OSError
+            If the path exists or cannot be created.
+        """
+        from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
+
+        if self._writer is not None:
+            raise ValueError(f"bag {self.path}: already open")
+        if self.path.exists():
+            raise FileExistsError(f"bag {self.path}: exists already, not overwriting")
+        store = vega_typestore()
+        writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        for key, value in self.metadata.items():
+            writer.set_custom_data(key, value)
+        try:
+            writer.open()
+        except WriterError as exc:
+            raise OSError(f"bag {self.path}: {exc}") from None
+        for topic in topics.ALL_TOPICS:
+            self._connections[topic.name] = writer.add_connection(
+                topic.name, topic.type_name, typestore=store,
+                offered_qos_profiles=[topic_qos(topic)])
+            self.counts[topic.name] = 0
+        self._writer = writer
+        return self
+
+    def write(self, topic: str, log_time_ns: int, data: bytes | memoryview) -> None:
+        """Append one message: its topic, log time (sim-time stamp) [ns], raw CDR bytes.
+
+        Raises
+        ------
+        ValueError
+            If the bag is not open or the topic is not one of the graph's.
+        """
+        if self._writer is None:
+            raise ValueError(f"bag {self.path}: not open")
+        try:
+            connection = self._connections[topic]
+        except KeyError:
+            raise ValueError(f"bag {self.path}: topic {topic!r} is not a topic of the graph "
+                             f"({', '.join(self._connections)})") from None
+        self._writer.write(connection, int(log_time_ns), data)
+        self.counts[topic] += 1
+
+    def close(self) -> None:
+        """Write the MCAP summary and ``metadata.yaml``; idempotent."""
+        writer, self._writer = self._writer, None
+        if writer is not None:
+            writer.close()
+
+    def __enter__(self) -> "RunBagWriter":
+        return self.open()
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        self.close()
+        return False
+
+
+# ----------------------------------------------------------------------------- reader
+@dataclass(frozen=True)
+class TopicColumns:
+    """One topic of a bag as numpy columns, in bag (log-time) order.
+
+    Attributes
+    ----------
+    topic, type_name
+        Topic name and rosidl type.
+    log_time_ns
+        Log time of each message [ns] (int64).
+    columns
+        Field name → array (see the module docstring for the layout).
+    counts
+        Variable-size field name → per-message lengths (int64).
+    """
+
+    topic: str
+    type_name: str
+    log_time_ns: np.ndarray
+    columns: Mapping[str, np.ndarray]
+    counts: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.log_time_ns.size)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        try:
+            return self.columns[name]
+        except KeyError:
+            raise KeyError(f"topic {self.topic} has no column {name!r} "
+                           f"(columns: {', '.join(self.columns)})") from None
+
+
+@dataclass(frozen=True)
+class RunBag:
+    """A run bag loaded into memory: per-topic columns and the custom metadata.
+
+    ``topics`` holds every vega topic present (:mod:`vega_bus.topics` names), possibly with
+    zero messages; ``metadata`` the custom_data (empty if none); ``other_topics`` the names of
+    topics that are not the graph's (ignored).
+    """
+
+    path: str
+    topics: Mapping[str, TopicColumns]
+    metadata: Mapping[str, str]
+    other_topics: tuple[str, ...] = ()
+
+    def __getitem__(self, topic: str) -> TopicColumns:
+        try:
+            return self.topics[topic]
+        except KeyError:
+            raise BagError(f"bag {self.path}: no topic {topic}") from None
+
+    def has(self, topic: str) -> bool:
+        """True if ``topic`` is in the bag."""
+        return topic in self.topics
+
+
+def _time_ns(t) -> int:
+    return t.sec * 1_000_000_000 + t.nanosec
+
+
+def _columns_of(store, type_name: str, messages: list) -> tuple[dict, dict]:
+    """Columns of the decoded ``messages`` of type ``type_name``."""
+    from rosbags.typesys.store import Nodetype
+
+    cols: dict[str, np.ndarray] = {}
+    counts: dict[str, np.ndarray] = {}
+    n = len(messages)
+    for name, (kind, detail) in store.fielddefs[type_name][1]:
+        values = [getattr(m, name) for m in messages]
+        if kind == Nodetype.NAME and detail == "std_msgs/msg/Header":
+            cols["stamp_ns"] = np.fromiter((_time_ns(v.stamp) for v in values), np.int64, n)
+        elif kind == Nodetype.NAME and detail == "builtin_interfaces/msg/Time":
+            key = "stamp_ns" if type_name == topics.CLOCK.type_name else f"{name}_ns"
+            cols[key] = np.fromiter((_time_ns(v) for v in values), np.int64, n)
+        elif kind == Nodetype.BASE:
+            base = detail[0]
+            if base == "string":
+                continue
+            dtype = bool if base == "bool" else (np.float64 if base.startswith("float")
+                                                 else np.int64)
+            cols[name] = np.array(values, dtype=dtype)
+        elif kind == Nodetype.ARRAY:
+            cols[name] = (np.array(values, dtype=float).reshape(n, detail[1])
+                          if n else np.zeros((0, detail[1])))
+        elif kind == Nodetype.SEQUENCE:
+            counts[name] = np.fromiter((len(v) for v in values), np.int64, n)
+            cols[name] = (np.concatenate(values).astype(float, copy=False) if n
+                          else np.zeros(0))
+    return cols, counts
+
+
+def _open_reader(path: Path):
+    """An opened rosbags reader of the bag directory ``path`` (BagError otherwise)."""
+    from rosbags.rosbag2 import Reader
+
+    if not path.exists():
+        raise BagError(f"bag {path}: no such file or directory")
+    if not path.is_dir():
+        raise BagError(f"bag {path}: not a rosbag2 directory (expected a directory with "
+                       f"metadata.yaml)")
+    if not (path / "metadata.yaml").is_file():
+        raise BagError(f"bag {path}: not a rosbag2 directory (no metadata.yaml)")
+    reader = Reader(path)
+    try:
+        reader.open()
+    except Exception as exc:  # rosbags raises ReaderError, KeyError, struct/ValueError, …
+        raise BagError(f"bag {path}: unreadable ({_one_line(exc)})") from None
+    return reader
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def _vega_connections(path: Path, reader) -> tuple[dict, tuple[str, ...]]:
+    """The graph topics' connections (topic → connection) and the other topic names."""
+    known = {t.name: t for t in topics.ALL_TOPICS}
+    wanted, other = {}, []
+    for conn in reader.connections:
+        topic = known.get(conn.topic)
+        if topic is None:
+            other.append(conn.topic)
+            continue
+        if conn.msgtype != topic.type_name:
+            raise BagError(f"bag {path}: foreign bag: topic {conn.topic} has type "
+                           f"{conn.msgtype}, expected {topic.type_name}")
+        wanted[conn.topic] = conn
+    if not any(t.name in wanted for t in topics.DATA_TOPICS):
+        found = ", ".join(sorted(other)) or "no topics"
+        raise BagError(f"bag {path}: foreign bag: none of the vega topics "
+                       f"({', '.join(t.name for t in topics.DATA_TOPICS)}); it holds {found}")
+    return wanted, tuple(sorted(set(other)))
+
+
+@contextmanager
+def _run_bag_reader(path: Path):
+    """(opened reader, graph-topic connections, other topic names); closes the reader."""
+    reader = _open_reader(path)
+    try:
+        wanted, other = _vega_connections(path, reader)
+        yield reader, wanted, other
+    finally:
+        with suppress(Exception):
+            reader.close()
+
+
+def _messages(path: Path, reader, connections) -> Iterator[tuple[Any, int, bytes]]:
+    """The reader's messages of ``connections``; storage errors as BagError."""
+    try:
+        yield from reader.messages(connections=connections)
+    except Exception as exc:  # truncated chunks, bad records, decompression errors, …
+        raise BagError(f"bag {path}: corrupt data ({_one_line(exc)})") from None
+
+
+def iter_raw_messages(path: str | Path, topic_names=None) -> Iterator[tuple[str, int, bytes]]:
+    """(topic, log time [ns], raw CDR bytes) of a run bag's graph topics, in log-time order.
+
+    Parameters
+    ----------
+    path
+        Bag directory.
+    topic_names
+        Topics to yield (default: every graph topic in the bag).
+
+    Raises
+    ------
+    BagError
+        Missing, corrupt or foreign bag (also while iterating, if the data is truncated).
+    """
+    path = Path(path)
+    with _run_bag_reader(path) as (reader, wanted, _):
+        conns = [c for name, c in wanted.items() if topic_names is None or name in topic_names]
+        if conns:
+            for conn, log_time, data in _messages(path, reader, conns):
+                yield conn.topic, log_time, data
+
+
+def read_run_bag(path: str | Path) -> RunBag:
+    """Load a run bag: every graph topic as numpy columns, and the custom metadata.
+
+    Raises
+    ------
+    BagError
+        One line: missing path, not a rosbag2 directory, unreadable or truncated storage,
+        undecodable message, or a foreign bag (no vega topic, or a vega topic with another
+        message type).
+    """
+    path = Path(path)
+    store = vega_typestore()
+    with _run_bag_reader(path) as (reader, wanted, other):
+        custom = dict(getattr(reader.storage.metadata, "custom", None) or {})
+        raw: dict[str, list] = {name: [] for name in wanted}
+        times: dict[str, list] = {name: [] for name in wanted}
+        for conn, log_time, data in _messages(path, reader, list(wanted.values())):
+            raw[conn.topic].append(data)
+            times[conn.topic].append(log_time)
+    loaded = {}
+    deserialize = store.deserialize_cdr
+    for name, conn in wanted.items():
+        try:
+            messages = [deserialize(data, conn.msgtype) for data in raw[name]]
+        except Exception as exc:
+            raise BagError(f"bag {path}: topic {name}: undecodable {conn.msgtype} message "
+                           f"({_one_line(exc)})") from None
+        cols, counts = _columns_of(store, conn.msgtype, messages)
+        loaded[name] = TopicColumns(name, conn.msgtype, np.array(times[name], dtype=np.int64),
+                                    cols, counts)
+    return RunBag(str(path), loaded, {str(k): str(v) for k, v in custom.items()}, other)

@@ -1,0 +1,196 @@
+"""Run bags (vega_sil.bagio): writer, reader, metadata and the one-line errors.
+
+Messages are rclpy messages serialised by rclpy (the bytes a recorder receives); the bag is
+read back by our reader and by plain rosbags.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from rclpy.serialization import serialize_message
+
+import msg_samples
+from vega_bus import topics
+from vega_sil import bagio
+
+TOPIC_OF = {"InsMeasurement": topics.INS.name, "TvcCommand": topics.TVC_CMD.name,
+            "ActuatorState": topics.ACTUATOR.name, "VehicleState": topics.TRUTH.name}
+META = {bagio.META_SCENARIO: "thesis", bagio.META_SCENARIO_YAML: "name: thesis\nseed: 7\n",
+        bagio.META_SEED: 7, bagio.META_CONTROLLER_TABLE: "/x/table.npz",
+        bagio.META_CONTROLLER_TABLE_SHA256: "0" * 64, bagio.META_GIT_REVISION: "abc"}
+
+
+def _ns(stamp):
+    return stamp["sec"] * 1_000_000_000 + stamp["nanosec"]
+
+
+@pytest.fixture(scope="module")
+def sample_bag(tmp_path_factory):
+    """One sample of each vega message (rclpy-serialised) at its stamp, plus two /clock."""
+    from rosgraph_msgs.msg import Clock
+
+    path = tmp_path_factory.mktemp("bag") / "run"
+    with bagio.RunBagWriter(path, META) as bag:
+        for name in msg_samples.TYPE_NAMES:
+            bag.write(TOPIC_OF[name], _ns(msg_samples.SAMPLES[name]["header"]["stamp"]),
+                      serialize_message(msg_samples.to_ros(name)))
+        for t_ns in (5_000_000, 5_010_000):
+            clock = Clock()
+            clock.clock.sec, clock.clock.nanosec = divmod(t_ns, 1_000_000_000)
+            bag.write(topics.CLOCK.name, t_ns, serialize_message(clock))
+    return path
+
+
+def test_fields_read_back_equal(sample_bag):
+    """Every field of every sample comes back in its column, with the log time = stamp."""
+    bag = bagio.read_run_bag(sample_bag)
+    assert set(bag.topics) == {t.name for t in topics.ALL_TOPICS}
+    for name, sample in msg_samples.SAMPLES.items():
+        cols = bag[TOPIC_OF[name]]
+        assert len(cols) == 1
+        assert cols.log_time_ns.tolist() == [_ns(sample["header"]["stamp"])]
+        assert cols["stamp_ns"].tolist() == [_ns(sample["header"]["stamp"])]
+        for field, value in sample.items():
+            if field == "header":
+                continue
+            if field == "sample_stamp":
+                assert cols["sample_stamp_ns"].tolist() == [_ns(value)]
+            elif isinstance(value, list):
+                assert cols[field].ravel().tolist() == value, field
+                if field in cols.counts:
+                    assert cols.counts[field].tolist() == [len(value)]
+            else:
+                assert cols[field].tolist() == [value], field
+    assert bag[topics.CLOCK.name]["stamp_ns"].tolist() == [5_000_000, 5_010_000]
+    assert bag.metadata == {k: str(v) for k, v in META.items()}
+
+
+def test_plain_rosbags_reads_the_bag(sample_bag):
+    """rosbags alone (typestore from the message definitions stored in the bag) decodes it."""
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([sample_bag]) as reader:
+        assert {c.topic: c.msgtype for c in reader.connections} == \
+            {t.name: t.type_name for t in topics.ALL_TOPICS}
+        decoded = {c.topic: reader.deserialize(raw, c.msgtype)
+                   for c, _, raw in reader.messages() if c.topic != topics.CLOCK.name}
+    for name, sample in msg_samples.SAMPLES.items():
+        assert msg_samples.rosbags_to_plain(decoded[TOPIC_OF[name]]) == sample
+
+
+def test_metadata_and_qos_in_metadata_yaml(sample_bag):
+    """metadata.yaml: version 9, MCAP, custom_data, the offered QoS and the RIHS01 hashes."""
+    import yaml
+
+    info = yaml.safe_load((sample_bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["version"] == 9 and info["storage_identifier"] == "mcap"
+    assert info["custom_data"][bagio.META_SCENARIO_YAML] == META[bagio.META_SCENARIO_YAML]
+    by_name = {t["topic_metadata"]["name"]: t for t in info["topics_with_message_count"]}
+    ins = by_name[topics.INS.name]["topic_metadata"]
+    assert ins["offered_qos_profiles"][0]["reliability"] == "reliable"
+    assert ins["offered_qos_profiles"][0]["depth"] == topics.DATA_QUEUE_DEPTH
+    assert ins["type_description_hash"] == \
+        bagio.vega_typestore().hash_rihs01(topics.INS.type_name)
+    assert by_name[topics.CLOCK.name]["message_count"] == 2
+
+
+def test_writer_closes_on_error_and_keeps_the_bag_readable(tmp_path):
+    path = tmp_path / "crashed"
+    data = serialize_message(msg_samples.to_ros("InsMeasurement"))
+    with pytest.raises(RuntimeError, match="boom"):
+        with bagio.RunBagWriter(path, META) as bag:
+            bag.write(topics.INS.name, 1, data)
+            bag.write(topics.INS.name, 2, data)
+            raise RuntimeError("boom")
+    assert bagio.read_run_bag(path)[topics.INS.name].log_time_ns.tolist() == [1, 2]
+
+
+def test_writer_rejects_bad_use(tmp_path):
+    meta = dict(META)
+    del meta[bagio.META_GIT_REVISION]
+    with pytest.raises(ValueError, match="missing vega.git_revision"):
+        bagio.RunBagWriter(tmp_path / "a", meta)
+    with pytest.raises(ValueError, match="must be strings"):
+        bagio.RunBagWriter(tmp_path / "a", {**META, "x": [1]})
+    with bagio.RunBagWriter(tmp_path / "b", META) as bag:
+        with pytest.raises(ValueError, match="not a topic of the graph"):
+            bag.write("/chatter", 0, b"")
+    with pytest.raises(FileExistsError, match="exists already"):
+        bagio.RunBagWriter(tmp_path / "b", META).open()
+
+
+def test_run_metadata(tmp_path):
+    table = tmp_path / "t.npz"
+    table.write_bytes(b"abc")
+    meta = bagio.run_metadata("gust", "name: gust\n", 3, table, git_rev="r1",
+                              extra={"vega.plant": "linear"})
+    assert meta[bagio.META_CONTROLLER_TABLE_SHA256] == \
+        "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"  # SHA-256("abc")
+    assert meta[bagio.META_SEED] == "3" and meta["vega.plant"] == "linear"
+    assert set(bagio.REQUIRED_METADATA) <= set(meta)
+    assert bagio.git_revision(tmp_path) == "unknown"
+
+
+# ----------------------------------------------------------------------------- bad bags
+def _one_line_error(path, match):
+    with pytest.raises(bagio.BagError, match=match) as info:
+        bagio.read_run_bag(path)
+    assert "\n" not in str(info.value) and str(path) in str(info.value)
+
+
+def test_missing_and_not_a_bag(tmp_path):
+    _one_line_error(tmp_path / "nope", "no such file or directory")
+    (tmp_path / "file").write_text("x")
+    _one_line_error(tmp_path / "file", "not a rosbag2 directory")
+    _one_line_error(tmp_path, "no metadata.yaml")
+
+
+def test_truncated_mcap(sample_bag, tmp_path):
+    import shutil
+
+    path = tmp_path / "truncated"
+    shutil.copytree(sample_bag, path)
+    (mcap,) = path.glob("*.mcap")
+    mcap.write_bytes(mcap.read_bytes()[: mcap.stat().st_size // 2])
+    _one_line_error(path, "unreadable|corrupt")
+
+
+def test_garbage_metadata(sample_bag, tmp_path):
+    import shutil
+
+    path = tmp_path / "garbage"
+    shutil.copytree(sample_bag, path)
+    (path / "metadata.yaml").write_text("rosbag2_bagfile_information: [1, 2\n")
+    _one_line_error(path, "unreadable")
+
+
+def _foreign(path, topic, msgtype, message):
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conn = writer.add_connection(topic, msgtype, typestore=store)
+        writer.write(conn, 1, store.serialize_cdr(message, msgtype))
+
+
+def test_foreign_bags(tmp_path):
+    from rosbags.typesys import Stores, get_typestore
+
+    String = get_typestore(Stores.ROS2_JAZZY).types["std_msgs/msg/String"]
+    _foreign(tmp_path / "chatter", "/chatter", "std_msgs/msg/String", String(data="hi"))
+    _one_line_error(tmp_path / "chatter", "foreign bag: none of the vega topics.*/chatter")
+    _foreign(tmp_path / "wrongtype", topics.INS.name, "std_msgs/msg/String", String(data="x"))
+    _one_line_error(tmp_path / "wrongtype",
+                    "foreign bag: topic /vega/ins has type std_msgs/msg/String")
+
+
+def test_iter_raw_messages_gives_the_recorded_bytes(sample_bag):
+    got = list(bagio.iter_raw_messages(sample_bag, {topics.TVC_CMD.name}))
+    assert len(got) == 1
+    topic, t_ns, data = got[0]
+    assert topic == topics.TVC_CMD.name and t_ns == 42_012_000_000
+    decoded = bagio.vega_typestore().deserialize_cdr(data, topics.TVC_CMD.type_name)
+    assert math.isclose(decoded.compute_time_s, 1.25e-4)
+    assert np.isfinite(decoded.deflection_cmd_rad)
