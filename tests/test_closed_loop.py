@@ -24,14 +24,15 @@ from vega_plant.ins import InsParams
 from vega_plant.actuator import ActuatorParams
 from vega_plant.parameters import default_context
 from vega_plant.wind import dryden_ss
-from vega_sil import sim_plant
-from vega_sil.closed_loop import (build_nodes, derive_seeds, make_actuator, make_controller,
-                                  make_ins, make_plant, run_scenario)
-from vega_sil.scenario import InitialState, Scenario, WindSettings, load_scenario
-from vega_sil.sim_nodes import ActuatorNode, ControllerNode, InsNode
-from vega_sil.sim_plant import (THESIS_DRYDEN_WEIGHT, ParameterTrack, TruthOut,
-                                _expm_batched, parameters_at, thesis_dryden_coefficients)
-from vega_sil.sim_timing import LoopTiming, ms_to_stamp, seconds_to_ms, stamp_to_ms
+from vega_bus.timing import LoopTiming, ms_to_stamp, seconds_to_ms, stamp_to_ms
+from vega_gnc.sim_controller import ControllerNode
+from vega_plant import sim_plant
+from vega_plant.scenario import InitialState, Scenario, WindSettings, load_scenario
+from vega_plant.sim_nodes import ActuatorNode, InsNode
+from vega_plant.sim_plant import (THESIS_DRYDEN_WEIGHT, ParameterTrack, TruthOut,
+                                  _expm_batched, parameters_at, thesis_dryden_coefficients)
+from vega_plant.sim_setup import derive_seeds, make_actuator, make_ins, make_plant
+from vega_sil.closed_loop import build_nodes, make_controller, run_scenario
 
 NAMES = ["theta_ins_rad", "theta_dot_ins_radps", "z_ins_m", "z_dot_ins_mps"]
 DESIGN_TIMES = (2, 5, 10, 20, 30, 40, 50, 60, 70, 80, 90, 92, 94, 96, 98, 100)

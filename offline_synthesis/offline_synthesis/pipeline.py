@@ -217,7 +217,7 @@ def thesis_scenario_metrics(table_path, context, progress: Callable[[str], None]
     the flight software runs it (vega_sil.closed_loop); Table 5.1 metrics with the thesis'
     figures side by side."""
     from vega_sil.closed_loop import run_scenario
-    from vega_sil.scenario import load_scenario
+    from vega_plant.scenario import load_scenario
 
     base = load_scenario("thesis")
     out = {}

@@ -1,8 +1,9 @@
 """Build script of the ament_python package vega_plant (layout of ``ros2 pkg create``).
 
 Executables go to ``lib/vega_plant`` (see setup.cfg) so that ``ros2 run vega_plant EXE`` and
-``vega node vega_plant EXE`` find them; files under ``vega_plant/data/`` ship inside the Python
-package; ``package.xml`` and ``config/*`` (if present) are installed to ``share/vega_plant``.
+``vega node vega_plant EXE`` find them; files under ``vega_plant/data/`` and the scenarios
+``vega_plant/scenarios/*.yaml`` ship inside the Python package;
+``package.xml`` and ``config/*`` (if present) are installed to ``share/vega_plant``.
 """
 from glob import glob
 
@@ -22,7 +23,7 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
-    package_data={package_name: ['data/*']},
+    package_data={package_name: ['data/*', 'scenarios/*.yaml']},
     data_files=data_files,
     install_requires=['setuptools'],
     zip_safe=True,

@@ -1,9 +1,9 @@
 """Build script of the ament_python package vega_sil (layout of ``ros2 pkg create``).
 
 Executables go to ``lib/vega_sil`` (see setup.cfg) so that ``ros2 run vega_sil EXE`` and
-``vega node vega_sil EXE`` find them; files under ``vega_sil/data/``, the scenarios
-``vega_sil/scenarios/*.yaml`` and the requirement file ``vega_sil/config/*.yaml`` ship inside the
-Python package; ``package.xml`` and ``config/*`` (if present) are installed to ``share/vega_sil``.
+``vega node vega_sil EXE`` find them; files under ``vega_sil/data/`` and the requirement file
+``vega_sil/config/*.yaml`` ship inside the Python package;
+``package.xml`` and ``config/*`` (if present) are installed to ``share/vega_sil``.
 """
 from glob import glob
 
@@ -23,7 +23,7 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
-    package_data={package_name: ['data/*', 'scenarios/*.yaml', 'config/*.yaml']},
+    package_data={package_name: ['data/*', 'config/*.yaml']},
     data_files=data_files,
     install_requires=['setuptools'],
     zip_safe=True,

@@ -1,15 +1,15 @@
 """The in-process closed-loop simulation: the SIL's node step functions, called in lockstep.
 
-:func:`run_scenario` flies a :class:`~vega_sil.scenario.Scenario` with a controller table
-through the same classes the SIL nodes wrap (:mod:`vega_sil.sim_plant`,
-:mod:`vega_sil.sim_nodes`), one frame (10 ms) at a time, in the order the lockstep SIL runs
+:func:`run_scenario` flies a :class:`~vega_plant.scenario.Scenario` with a controller table
+through the same classes the SIL nodes wrap (:mod:`vega_plant.sim_plant`,
+:mod:`vega_plant.sim_nodes`, :mod:`vega_gnc.sim_controller`), one frame (10 ms) at a time, in the order the lockstep SIL runs
 them::
 
     truth(t_f) ──► INS.sample ──► controller.step (every 2nd sample) ──► actuator.receive
          ▲                                                                    │
          └──────────── plant.advance(samples) ◄── actuator.advance(t_f) ◄─────┘
 
-All times are integer milliseconds (:mod:`vega_sil.sim_timing`); the latencies are carried
+All times are integer milliseconds (:mod:`vega_bus.timing`); the latencies are carried
 by the stamps (INS +12 ms, controller +12 ms, actuator +15 ms), not by the call order, so the
 result does not depend on when within a frame a node is called. Same scenario and seed →
 identical arrays. The SIL must reproduce this run (same scenario, seed and table).
@@ -17,10 +17,11 @@ identical arrays. The SIL must reproduce this run (same scenario, seed and table
 The run covers the frames [t_start, t_end): the INS samples at their starts, the plant's truth
 is recorded at every frame time up to and including t_end, the actuator at every physics step.
 
-A SIL node builds its part with the factory the in-process run uses (:func:`make_plant`,
-:func:`make_ins` — its model parameters at a sample time are
-:func:`vega_sil.sim_plant.parameters_at` —, :func:`make_controller`, :func:`make_actuator`)
-and converts stamps with :mod:`vega_sil.sim_timing`; tests/test_closed_loop.py checks that
+A SIL node builds its part with the factory the in-process run uses
+(:mod:`vega_plant.sim_setup`: ``make_plant``, ``make_ins`` — its model parameters at a sample
+time are :func:`vega_plant.sim_plant.parameters_at` —, ``make_actuator``; the controller:
+:class:`vega_gnc.sim_controller.ControllerNode` from the table and the loop timing) and
+converts stamps with :mod:`vega_bus.timing`; tests/test_closed_loop.py checks that
 nodes built and driven that way reproduce :func:`run_scenario` bit for bit.
 """
 
@@ -31,82 +32,19 @@ from pathlib import Path
 
 import numpy as np
 
+from vega_bus.timing import LoopTiming
 from vega_gnc.controller_runtime import RuntimeLimits
 from vega_gnc.controller_table import ControllerTable, load_controller_table
-from vega_plant.actuator import ActuatorParams
-from vega_plant.ins import InsParams
+from vega_gnc.sim_controller import ControllerNode
 from vega_plant.parameters import ModelContext, default_context
-from vega_plant.wind import GustProfile
+from vega_plant.scenario import Scenario, load_scenario
+from vega_plant.sim_nodes import ActuatorNode, InsNode
+from vega_plant.sim_plant import PlantNode
+from vega_plant.sim_setup import loop_timing, make_actuator, make_ins, make_plant
 
 from .requirements import RequirementReport, RequirementSpec, evaluate_requirements
-from .scenario import Scenario, load_scenario
-from .sim_nodes import ActuatorNode, ControllerNode, InsNode
-from .sim_plant import PlantNode, PlantWind, parameter_track
-from .sim_timing import LoopTiming
 
-__all__ = ["derive_seeds", "loop_timing", "make_plant", "make_ins", "make_controller",
-           "make_actuator", "LoopNodes", "build_nodes", "SimulationResult", "run_scenario"]
-
-
-def derive_seeds(seed: int) -> tuple[int, int]:
-    """Independent (wind, INS) generator seeds from a scenario seed.
-
-    ``numpy.random.SeedSequence(seed).spawn(2)``, one 64-bit state word each: the two noise
-    streams are independent, and the SIL nodes derive the same seeds from the same number.
-    """
-    children = np.random.SeedSequence(int(seed)).spawn(2)
-    wind, ins = (int(c.generate_state(1, np.uint64)[0]) for c in children)
-    return wind, ins
-
-
-def loop_timing(scenario: Scenario, context: ModelContext | None = None) -> LoopTiming:
-    """The loop timing of a scenario (its ``delay_s`` deviation goes to the actuator delay)."""
-    context = context if context is not None else default_context()
-    return LoopTiming.from_vehicle(context.vehicle, scenario.deviations.get("delay_s", 0.0))
-
-
-def make_plant(scenario: Scenario, *, seed: int | None = None,
-               context: ModelContext | None = None,
-               parameter_refresh_ms: int | None = None) -> PlantNode:
-    """The plant node of a scenario (with its wind), at t_start.
-
-    Parameters
-    ----------
-    scenario
-        Span, plant model, initial state, wind and deviations.
-    seed
-        Overrides ``scenario.seed`` (the wind seed comes from :func:`derive_seeds`).
-    context
-        Model data sources (default: the shipped vehicle data and flight conditions).
-    parameter_refresh_ms
-        Model-parameter refresh interval (a divisor of the 10 ms frame; default: the frame).
-    """
-    context = context if context is not None else default_context()
-    timing = loop_timing(scenario, context)
-    refresh = timing.frame_ms if parameter_refresh_ms is None else int(parameter_refresh_ms)
-    track = parameter_track(context, scenario.t_start_ms, scenario.t_end_ms,
-                            frame_ms=timing.frame_ms, refresh_ms=refresh,
-                            dt_ms=timing.physics_dt_ms, deviations=scenario.deviations)
-    w = scenario.wind
-    gust = None if w.gust is None else GustProfile(w.gust.start_s, w.gust.duration_s,
-                                                   w.gust.amplitude_mps)
-    wind = PlantWind(context.vehicle, track, profile=w.profile, turbulence=w.turbulence,
-                     gust=gust, seed=derive_seeds(scenario.seed if seed is None else seed)[0],
-                     thesis_constant_dryden=w.thesis_constant_dryden,
-                     dt_ms=timing.physics_dt_ms)
-    return PlantNode(track, wind, scenario.plant, scenario.initial_state.plant_state(),
-                     scenario.initial_state.beta_rad)
-
-
-def make_ins(scenario: Scenario, *, seed: int | None = None,
-             context: ModelContext | None = None) -> InsNode:
-    """The INS node of a scenario (noise seed from :func:`derive_seeds`). Its model parameters
-    at a sample time are :func:`vega_sil.sim_plant.parameters_at` with the scenario's
-    deviations."""
-    context = context if context is not None else default_context()
-    return InsNode(InsParams.from_vehicle(context.vehicle), loop_timing(scenario, context),
-                   derive_seeds(scenario.seed if seed is None else seed)[1],
-                   scenario.sensor_noise)
+__all__ = ["make_controller", "LoopNodes", "build_nodes", "SimulationResult", "run_scenario"]
 
 
 def make_controller(scenario: Scenario, table: ControllerTable, *,
@@ -114,15 +52,6 @@ def make_controller(scenario: Scenario, table: ControllerTable, *,
                     limits: RuntimeLimits = RuntimeLimits()) -> ControllerNode:
     """The controller node of a scenario with a controller table."""
     return ControllerNode(table, loop_timing(scenario, context), limits)
-
-
-def make_actuator(scenario: Scenario, *, context: ModelContext | None = None) -> ActuatorNode:
-    """The actuator node of a scenario (its ``actuator`` deviation scales the bandwidth)."""
-    context = context if context is not None else default_context()
-    params = ActuatorParams.from_vehicle(
-        context.vehicle, bandwidth_scale=1.0 + scenario.deviations.get("actuator", 0.0))
-    return ActuatorNode(params, loop_timing(scenario, context), scenario.t_start_ms,
-                        scenario.initial_state.beta_rad)
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """Scenarios: what one closed-loop run flies (span, initial state, plant, wind, noise, seed).
 
-One YAML file per scenario in ``vega_sil/scenarios/`` (the file name is the scenario name);
+One YAML file per scenario in ``vega_plant/scenarios/`` (the file name is the scenario name);
 :func:`load_scenario` validates a file completely — unknown or missing keys, wrong types,
 values out of range — and reports the first problem as one line naming the file and the
 field (``ValueError``). The in-process simulation and the SIL read the same files.
@@ -43,17 +43,17 @@ from typing import Any, Mapping
 
 import yaml
 
-from vega_plant.dynamics import STATES
-from vega_plant.textfile import read_text
-from vega_plant.uncertainty import UncertaintySet
-from vega_plant.vehicle_data import VehicleData, load_vehicle_data
-from vega_plant.wind import INTENSITIES
+from vega_bus.timing import LoopTiming, seconds_to_ms
 
+from .dynamics import STATES
 from .sim_plant import PLANT_MODELS
-from .sim_timing import LoopTiming, seconds_to_ms
+from .textfile import read_text
+from .uncertainty import UncertaintySet
+from .vehicle_data import VehicleData, load_vehicle_data
+from .wind import INTENSITIES
 
 __all__ = ["GustSettings", "WindSettings", "InitialState", "Scenario", "scenario_names",
-           "scenario_path", "load_scenario", "parse_scenario"]
+           "scenario_path", "scenario_file", "load_scenario", "parse_scenario"]
 
 
 @dataclass(frozen=True)
@@ -142,7 +142,7 @@ class Scenario:
 
 
 def _scenario_dir() -> Path:
-    return Path(str(resources.files("vega_sil").joinpath("scenarios")))
+    return Path(str(resources.files("vega_plant").joinpath("scenarios")))
 
 
 def scenario_names() -> tuple[str, ...]:
@@ -177,12 +177,17 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     ValueError
         One line naming the file and the field.
     """
+    path = scenario_file(name_or_path)
+    return parse_scenario(read_text(path, "scenario"), str(path), expected_name=path.stem)
+
+
+def scenario_file(name_or_path: str | Path) -> Path:
+    """The file a scenario argument names: a path (``.yaml``/``.yml`` or containing ``/``)
+    as given, else the shipped scenario of that name (:func:`scenario_path`)."""
     text_path = str(name_or_path)
     if isinstance(name_or_path, Path) or text_path.endswith((".yaml", ".yml")) or "/" in text_path:
-        path = Path(name_or_path)
-    else:
-        path = scenario_path(text_path)
-    return parse_scenario(read_text(path, "scenario"), str(path), expected_name=path.stem)
+        return Path(name_or_path)
+    return scenario_path(text_path)
 
 
 # ----------------------------------------------------------------------------- parsing

@@ -1,14 +1,16 @@
-"""The INS, controller and actuator of the closed loop as step functions (one class per node).
+"""The INS and actuator of the closed loop as step functions (one class per node).
 
 Plain Python, no ROS: the in-process simulation (:mod:`vega_sil.closed_loop`) and the SIL
-nodes call these same classes, so both produce the same numbers. Each class takes and returns
-plain values whose fields are those of the ``vega_msgs`` message it will publish, with stamps
-as integer milliseconds (:mod:`vega_sil.sim_timing` converts to ROS stamps):
+nodes (:mod:`vega_plant.nodes`) call these same classes, so both produce the same numbers.
+Each class takes and returns plain values whose fields are those of the ``vega_msgs`` message
+it will publish, with stamps as integer milliseconds (:mod:`vega_bus.timing` converts to ROS
+stamps). The controller's step class, on the flight side, is
+:class:`vega_gnc.sim_controller.ControllerNode`:
 
 * :class:`InsNode` — samples the truth every frame (100 Hz) with
   :class:`vega_plant.ins.InsSensor` (seeded noise); the measurement is stamped sample +
   sensor latency (12 ms). → :class:`InsOut` (``InsMeasurement``)
-* :class:`ControllerNode` — every measurement whose sample time is a multiple of the
+* ControllerNode (:mod:`vega_gnc.sim_controller`) — every measurement whose sample time is a multiple of the
   controller period (20 ms) goes through :class:`vega_gnc.controller_runtime.ControllerRuntime`
   exactly as flown, at its arrival; the command is stamped arrival + computing latency (12 ms).
   → :class:`CommandOut` (``TvcCommand``)
@@ -22,16 +24,14 @@ from __future__ import annotations
 import bisect
 from typing import NamedTuple
 
-from vega_gnc.controller_runtime import ControllerRuntime, Measurement, RuntimeLimits
-from vega_gnc.controller_table import ControllerTable
-from vega_plant.actuator import ActuatorParams, TvcActuator
-from vega_plant.ins import InsParams, InsSensor
-from vega_plant.parameters import ModelParameters
+from vega_bus.timing import LoopTiming, check_ms
 
+from .actuator import ActuatorParams, TvcActuator
+from .ins import InsParams, InsSensor
+from .parameters import ModelParameters
 from .sim_plant import TruthOut
-from .sim_timing import LoopTiming
 
-__all__ = ["InsOut", "CommandOut", "ActuatorOut", "InsNode", "ControllerNode", "ActuatorNode"]
+__all__ = ["InsOut", "ActuatorOut", "InsNode", "ActuatorNode"]
 
 
 class InsOut(NamedTuple):
@@ -50,22 +50,6 @@ class InsOut(NamedTuple):
     drift_rate_mps: float
     velocity_mps: float
     valid: bool
-
-
-class CommandOut(NamedTuple):
-    """One nozzle command: the fields of ``vega_msgs/TvcCommand`` except the wall-clock
-    ``compute_time_s``, which the node measures itself.
-
-    ``stamp_ms`` = arrival of the measurement + computing latency; ``sample_ms`` = the
-    measurement's sample time.
-    """
-
-    stamp_ms: int
-    sample_ms: int
-    seq: int
-    deflection_cmd_rad: float
-    scheduling_velocity_mps: float
-    status: int
 
 
 class ActuatorOut(NamedTuple):
@@ -101,12 +85,6 @@ class ActuatorOut(NamedTuple):
         return self.accel_samples_radps2[-1]
 
 
-def _check_ms(value_s: float, expected_ms: int, what: str) -> None:
-    if abs(value_s * 1000.0 - expected_ms) > 1e-6:
-        raise ValueError(f"{what} {value_s!r} s does not match the loop timing "
-                         f"({expected_ms} ms)")
-
-
 class InsNode:
     """INS sensor node: one measurement per frame.
 
@@ -123,8 +101,8 @@ class InsNode:
     """
 
     def __init__(self, params: InsParams, timing: LoopTiming, seed: int, noise: bool = True):
-        _check_ms(1.0 / params.rate_hz, timing.frame_ms, "INS period")
-        _check_ms(params.latency_s, timing.sensor_latency_ms, "INS latency")
+        check_ms(1.0 / params.rate_hz, timing.frame_ms, "INS period")
+        check_ms(params.latency_s, timing.sensor_latency_ms, "INS latency")
         self._sensor = InsSensor(params, seed=seed, noise=noise)
         self._latency_ms = timing.sensor_latency_ms
         self._seq = 0
@@ -146,49 +124,6 @@ class InsNode:
         return out
 
 
-class ControllerNode:
-    """Flight-controller node: the table-driven runtime at the controller rate.
-
-    Parameters
-    ----------
-    table
-        Validated controller table; its ``dt_s`` must be the controller period.
-    timing
-        Loop timing (controller period, computing latency).
-    limits
-        Runtime safety parameters.
-    rate_mps2
-        ρ̇ slice of a rate-dependent table (None: the runtime's default, the upper slice).
-
-    Notes
-    -----
-    The runtime receives ``Measurement(stamp_s = sample time, …)`` and is stepped at
-    ``now_s`` = the measurement's arrival (its stamp), so its staleness check sees the sensor
-    latency (12 ms ≤ ``max_age_s``).
-    """
-
-    def __init__(self, table: ControllerTable, timing: LoopTiming,
-                 limits: RuntimeLimits = RuntimeLimits(), rate_mps2: float | None = None):
-        _check_ms(table.dt_s, timing.controller_period_ms, "controller table dt_s")
-        self.runtime = ControllerRuntime(table, limits, rate_mps2)
-        self._period_ms = timing.controller_period_ms
-        self._latency_ms = timing.computing_latency_ms
-        self._seq = 0
-
-    def step(self, meas: InsOut) -> CommandOut | None:
-        """Process one measurement; None if its sample time is not on the controller period."""
-        if meas.sample_ms % self._period_ms:
-            return None
-        cmd = self.runtime.step(
-            Measurement(meas.sample_ms / 1000.0, meas.pitch_rad, meas.pitch_rate_radps,
-                        meas.drift_m, meas.drift_rate_mps, meas.velocity_mps, meas.valid),
-            now_s=meas.stamp_ms / 1000.0)
-        out = CommandOut(meas.stamp_ms + self._latency_ms, meas.sample_ms, self._seq,
-                         cmd.deflection_cmd_rad, cmd.scheduling_velocity_mps, cmd.status)
-        self._seq += 1
-        return out
-
-
 class ActuatorNode:
     """TVC actuator node: delayed, held commands and the limited servo at the physics rate.
 
@@ -206,7 +141,7 @@ class ActuatorNode:
 
     def __init__(self, params: ActuatorParams, timing: LoopTiming, t_start_ms: int,
                  beta0_rad: float = 0.0):
-        _check_ms(params.dt_s, timing.physics_dt_ms, "actuator step")
+        check_ms(params.dt_s, timing.physics_dt_ms, "actuator step")
         self._act = TvcActuator(params, beta0_rad)
         self._dt_ms = timing.physics_dt_ms
         self._steps = timing.steps_per_frame
@@ -221,8 +156,12 @@ class ActuatorNode:
         """Start of the next frame [ms]."""
         return self._t_ms
 
-    def receive(self, cmd: CommandOut) -> None:
-        """Queue a command; it applies from ``cmd.stamp_ms`` + actuator latency."""
+    def receive(self, cmd) -> None:
+        """Queue a command; it applies from ``cmd.stamp_ms`` + actuator latency.
+
+        ``cmd``: a :class:`vega_gnc.sim_controller.CommandOut` or anything with its
+        ``stamp_ms``, ``seq`` and ``deflection_cmd_rad`` fields.
+        """
         bisect.insort(self._pending, (cmd.stamp_ms + self._latency_ms, cmd.seq,
                                       cmd.deflection_cmd_rad))
 

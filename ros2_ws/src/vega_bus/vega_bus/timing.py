@@ -1,5 +1,9 @@
 """Timing of the closed loop: rates and latencies as integer milliseconds, and stamps.
 
+Part of the node-graph contract: in the lockstep every node knows its producers' schedules
+from these numbers, and converts stamps with these functions. Plain Python (no ROS, no
+vehicle model): the flight side (vega_gnc) and the truth side (vega_plant) both import it.
+
 Every time in the simulation is an integer number of milliseconds (flight time since the
 ignition command), so that sampling, decimation and latencies are exact and two runs cannot
 drift apart by rounding; seconds appear only at the interfaces (``ms / 1000``).
@@ -19,10 +23,9 @@ an event and the next sample the controller uses).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Mapping
 
-from vega_plant.vehicle_data import VehicleData
-
-__all__ = ["LoopTiming", "seconds_to_ms", "ms_to_stamp", "stamp_to_ms"]
+__all__ = ["LoopTiming", "seconds_to_ms", "check_ms", "ms_to_stamp", "stamp_to_ms"]
 
 _NS_PER_MS = 1_000_000
 
@@ -42,6 +45,19 @@ def seconds_to_ms(value_s: float, what: str) -> int:
     if abs(ms - whole) > 1e-6:
         raise ValueError(f"{what} = {value_s!r} s is not a whole number of milliseconds")
     return int(whole)
+
+
+def check_ms(value_s: float, expected_ms: int, what: str) -> None:
+    """Check that ``value_s`` seconds is ``expected_ms`` milliseconds (within 1e-6 ms).
+
+    Raises
+    ------
+    ValueError
+        One line naming ``what`` and both values.
+    """
+    if abs(value_s * 1000.0 - expected_ms) > 1e-6:
+        raise ValueError(f"{what} {value_s!r} s does not match the loop timing "
+                         f"({expected_ms} ms)")
 
 
 def ms_to_stamp(t_ms: int) -> tuple[int, int]:
@@ -103,7 +119,7 @@ class LoopTiming:
             raise ValueError("LoopTiming.controller_period_ms must be a multiple of frame_ms")
 
     @classmethod
-    def from_vehicle(cls, data: VehicleData, actuator_delay_deviation_s: float = 0.0
+    def from_vehicle(cls, data: Mapping[str, float], actuator_delay_deviation_s: float = 0.0
                      ) -> "LoopTiming":
         """Timing from vehicle.yaml (``actuator.physics_rate_hz``, ``ins.rate_hz``,
         ``controller.rate_hz``, ``delays.*``).
@@ -111,7 +127,8 @@ class LoopTiming:
         Parameters
         ----------
         data
-            Vehicle data.
+            Vehicle data (:class:`vega_plant.vehicle_data.VehicleData`, or any mapping of
+            those dotted keys to numbers).
         actuator_delay_deviation_s
             Added to the actuator latency: the ``delay_s`` deviation of the uncertainty set
             (±10 ms on the total, thesis §2.12.4), applied to the actuator delay
