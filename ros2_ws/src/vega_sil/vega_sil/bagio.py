@@ -354,6 +354,154 @@ def _time_ns(t) -> int:
     return t.sec * 1_000_000_000 + t.nanosec
 
 
+# CDR primitive → (numpy dtype, little endian; size [bytes])
+_CDR_BASE = {"bool": ("?", 1), "byte": ("u1", 1), "char": ("u1", 1), "int8": ("i1", 1),
+             "uint8": ("u1", 1), "int16": ("<i2", 2), "uint16": ("<u2", 2),
+             "int32": ("<i4", 4), "uint32": ("<u4", 4), "int64": ("<i8", 8),
+             "uint64": ("<u8", 8), "float32": ("<f4", 4), "float64": ("<f8", 8)}
+_CDR_LE = b"\x00\x01"  # encapsulation: plain CDR, little endian
+_TIME = "builtin_interfaces/msg/Time"
+
+
+def _align(pos: int, size: int) -> int:
+    return (pos + size - 1) // size * size
+
+
+def _time_key(path: str, type_name: str) -> str:
+    if path == "header.stamp" or (path == "clock" and type_name == topics.CLOCK.type_name):
+        return "stamp_ns"
+    return f"{path}_ns"
+
+
+def _cdr_layout(store, root: str, type_name: str, data: bytes, pos: int, prefix: str,
+                out: list) -> int:
+    """Walk one CDR message from payload offset ``pos``; append its fields' places to ``out``.
+
+    Entries: ``("time", key, offset)``, ``("base", name, offset, dtype, size)``,
+    ``("array", name, offset, dtype, size, n)``, ``("seq", name, length_offset, offset,
+    dtype, size, n)``, ``("string", length_offset, length)``. Returns the end offset.
+    """
+    from rosbags.typesys.store import Nodetype
+
+    for name, (kind, detail) in store.fielddefs[type_name][1]:
+        path = f"{prefix}{name}"
+        if kind == Nodetype.NAME:
+            if detail == _TIME:
+                pos = _align(pos, 4)
+                out.append(("time", _time_key(path, root), pos))
+                pos += 8
+            else:
+                pos = _cdr_layout(store, root, detail, data, pos, f"{path}.", out)
+            continue
+        if kind == Nodetype.BASE:
+            if detail[0] == "string":
+                pos = _align(pos, 4)
+                length = int.from_bytes(data[4 + pos:8 + pos], "little")
+                out.append(("string", pos, length))
+                pos += 4 + length
+                continue
+            dtype, size = _CDR_BASE[detail[0]]
+            pos = _align(pos, size)
+            out.append(("base", path, pos, dtype, size))
+            pos += size
+            continue
+        (sub_kind, sub_detail), n = detail
+        if sub_kind != Nodetype.BASE or sub_detail[0] not in _CDR_BASE:
+            raise _NotFlat(path)
+        dtype, size = _CDR_BASE[sub_detail[0]]
+        if kind == Nodetype.ARRAY:
+            pos = _align(pos, size)
+            out.append(("array", path, pos, dtype, size, n))
+            pos += size * n
+        else:
+            pos = _align(pos, 4)
+            n = int.from_bytes(data[4 + pos:8 + pos], "little")
+            start = _align(pos + 4, size) if n else pos + 4
+            out.append(("seq", path, pos, start, dtype, size, n))
+            pos = start + size * n
+    return pos
+
+
+class _NotFlat(Exception):
+    """The fast decoder does not apply (nested sequences, differing layouts, …)."""
+
+
+def _as_column(raw: np.ndarray, dtype: str) -> np.ndarray:
+    kind = np.dtype(dtype).kind
+    if kind == "f":
+        return raw.astype(np.float64, copy=False)
+    if kind == "b":
+        return raw.astype(bool, copy=False)
+    return raw.astype(np.int64)
+
+
+def _fast_columns(store, type_name: str, raw: list) -> tuple[dict, dict]:
+    """Columns of same-layout CDR messages, read straight from the bytes with numpy.
+
+    Applies when every message has the layout of the first (same length, same string and
+    sequence lengths, little-endian CDR); raises :class:`_NotFlat` otherwise.
+    """
+    layout: list = []
+    length = len(raw[0])
+    if raw[0][:2] != _CDR_LE:
+        raise _NotFlat("byte order")
+    if 4 + _cdr_layout(store, type_name, type_name, raw[0], 0, "", layout) > length:
+        raise _NotFlat("truncated")
+    if any(len(d) != length for d in raw):
+        raise _NotFlat("lengths differ")
+    n = len(raw)
+    mat = np.frombuffer(b"".join(raw), dtype=np.uint8).reshape(n, length)
+
+    def field(offset: int, dtype: str, size: int, count: int = 1) -> np.ndarray:
+        lo = 4 + offset
+        return np.ascontiguousarray(mat[:, lo:lo + size * count]).view(dtype)
+
+    def same(offset: int, value: int) -> None:
+        if not np.all(field(offset, "<u4", 4) == value):
+            raise _NotFlat("variable lengths differ")
+
+    if not np.all(mat[:, :2] == np.frombuffer(_CDR_LE, np.uint8)):
+        raise _NotFlat("byte order")
+    cols: dict[str, np.ndarray] = {}
+    counts: dict[str, np.ndarray] = {}
+    for entry in layout:
+        kind = entry[0]
+        if kind == "time":
+            _, key, off = entry
+            cols[key] = (field(off, "<i4", 4)[:, 0].astype(np.int64) * 1_000_000_000
+                         + field(off + 4, "<u4", 4)[:, 0])
+        elif kind == "base":
+            _, name, off, dtype, size = entry
+            cols[name] = _as_column(field(off, dtype, size)[:, 0], dtype)
+        elif kind == "array":
+            _, name, off, dtype, size, k = entry
+            cols[name] = _as_column(field(off, dtype, size, k), dtype)
+        elif kind == "seq":
+            _, name, len_off, off, dtype, size, k = entry
+            same(len_off, k)
+            cols[name] = _as_column(field(off, dtype, size, k).reshape(-1), dtype)
+            counts[name] = np.full(n, k, dtype=np.int64)
+        else:
+            same(entry[1], entry[2])
+    return cols, counts
+
+
+def _decode_topic(store, path: Path, name: str, type_name: str,
+                  raw: list) -> tuple[dict, dict]:
+    """Columns of one topic: the fast numpy reader, else rosbags' deserialiser."""
+    if raw:
+        try:
+            return _fast_columns(store, type_name, raw)
+        except (_NotFlat, ValueError, IndexError):
+            pass
+    try:
+        messages = [store.deserialize_cdr(data, type_name) for data in raw]
+    except Exception as exc:
+        raise BagError(f"bag {path}: topic {name}: undecodable {type_name} message "
+                       f"({_one_line(exc)})") from None
+    return _columns_of(store, type_name, messages)
+
+
 def _columns_of(store, type_name: str, messages: list) -> tuple[dict, dict]:
     """Columns of the decoded ``messages`` of type ``type_name``."""
     from rosbags.typesys.store import Nodetype
@@ -491,14 +639,8 @@ def read_run_bag(path: str | Path) -> RunBag:
             raw[conn.topic].append(data)
             times[conn.topic].append(log_time)
     loaded = {}
-    deserialize = store.deserialize_cdr
     for name, conn in wanted.items():
-        try:
-            messages = [deserialize(data, conn.msgtype) for data in raw[name]]
-        except Exception as exc:
-            raise BagError(f"bag {path}: topic {name}: undecodable {conn.msgtype} message "
-                           f"({_one_line(exc)})") from None
-        cols, counts = _columns_of(store, conn.msgtype, messages)
+        cols, counts = _decode_topic(store, path, name, conn.msgtype, raw[name])
         loaded[name] = TopicColumns(name, conn.msgtype, np.array(times[name], dtype=np.int64),
                                     cols, counts)
     return RunBag(str(path), loaded, {str(k): str(v) for k, v in custom.items()}, other)
