@@ -1,11 +1,8 @@
 """The in-process closed loop: timing, determinism, plants, wind and the per-node step classes.
 
-The controller here is a hand-designed scheduled PD (a test fixture, not the LPV synthesis):
-at each grid velocity, from the linear model's rigid rows θ̈ ≈ a θ − b β and z̈ ≈ −g θ,
-β = K_p(θ − θ_ref) + K_d θ̇ with K_p = (ω² + a)/b, K_d = 2ζω/b (ω = 2.5 rad/s, ζ = 0.7) and a
-slow drift loop θ_ref = −(ω_z² z + 2ζ_z ω_z ż)/g (ω_z = 0.15 rad/s), rolled off by a
-second-order low-pass at 10 rad/s (bending mode 1 is at 30–37 rad/s), exported through
-offline_synthesis.export like the real table.
+The controller here is the hand-designed scheduled PD of tests/fixture_tables.py (a test
+fixture, not the LPV synthesis), exported through offline_synthesis.export like the real
+table.
 """
 
 import math
@@ -16,7 +13,7 @@ import pytest
 from scipy.linalg import expm
 from scipy.signal import cont2discrete
 
-from offline_synthesis.export import write_controller_table
+from fixture_tables import write_gain_table, write_pd_table
 from offline_synthesis.weights import THESIS
 from vega_gnc.controller_runtime import STATUS_OK
 from vega_plant.dynamics import linear_model
@@ -34,48 +31,19 @@ from vega_plant.sim_plant import (THESIS_DRYDEN_WEIGHT, ParameterTrack, TruthOut
 from vega_plant.sim_setup import derive_seeds, make_actuator, make_ins, make_plant
 from vega_sil.closed_loop import build_nodes, make_controller, run_scenario
 
-NAMES = ["theta_ins_rad", "theta_dot_ins_radps", "z_ins_m", "z_dot_ins_mps"]
-DESIGN_TIMES = (2, 5, 10, 20, 30, 40, 50, 60, 70, 80, 90, 92, 94, 96, 98, 100)
 QUIET = WindSettings(profile=False, turbulence="none", gust=None)
-META = {"input_names": NAMES, "measurement_sign": 1, "output_name": "beta_cmd_rad",
-        "units": {"beta_cmd_rad": "rad"}, "weights": {}, "solver": {"name": "test fixture"}}
-
-
-def _export(path, grid, A, B, C, D):
-    return write_controller_table(path, grid, np.array(A), np.array(B), np.array(C),
-                                  np.array(D), dt_s=0.02, gamma=1.0, gamma_min=1.0,
-                                  rate_bounds_mps2=[5.4, 36.4], metadata=META)
 
 
 @pytest.fixture(scope="module")
 def pd_table(tmp_path_factory):
-    """The hand-designed scheduled PD controller (module docstring)."""
-    ctx = default_context()
-    wn, zeta, wz, zz, wf, zf = 2.5, 0.7, 0.15, 0.8, 10.0, 0.7
-    grid, A, B, C, D = [], [], [], [], []
-    for t in DESIGN_TIMES:
-        p = ctx.parameters(t)
-        a, b, _, _ = linear_model(p)
-        a_theta, b_theta, g_z = a[1, 0], -b[1, 0], -a[3, 0]
-        kp = (wn ** 2 + a_theta) / b_theta
-        kd = 2.0 * zeta * wn / b_theta
-        gain = np.array([[kp, kd, -kp * wz ** 2 / g_z, -kp * 2.0 * zz * wz / g_z]])
-        grid.append(p.v_mps)
-        A.append([[0.0, 1.0], [-wf ** 2, -2.0 * zf * wf]])
-        B.append(np.vstack([np.zeros((1, 4)), wf ** 2 * gain]))
-        C.append([[1.0, 0.0]])
-        D.append([[0.0, 0.0, 0.0, 0.0]])
-    return _export(tmp_path_factory.mktemp("pd") / "pd.npz", grid, A, B, C, D)
+    """The hand-designed scheduled PD controller (tests/fixture_tables.py)."""
+    return write_pd_table(tmp_path_factory.mktemp("pd") / "pd.npz")
 
 
 @pytest.fixture(scope="module")
 def gain_table(tmp_path_factory):
     """A static gain β_cmd = 0.5·θ_INS (a first-order state that never feeds the output)."""
-    A = [[[-1.0]], [[-1.0]]]
-    B = [[[0.0, 0.0, 0.0, 0.0]]] * 2
-    C = [[[0.0]]] * 2
-    D = [[[0.5, 0.0, 0.0, 0.0]]] * 2
-    return _export(tmp_path_factory.mktemp("gain") / "gain.npz", [0.0, 3000.0], A, B, C, D)
+    return write_gain_table(tmp_path_factory.mktemp("gain") / "gain.npz")
 
 
 def _scenario(**changes):
@@ -362,8 +330,7 @@ def test_result_layout_and_metrics(pd_table):
 
 def test_bad_inputs(pd_table, tmp_path):
     with pytest.raises(ValueError, match="controller table dt_s"):
-        bad = _export(tmp_path / "slow.npz", [0.0, 3000.0], [[[-1.0]]] * 2,
-                      [[[0.0] * 4]] * 2, [[[0.0]]] * 2, [[[1.0, 0, 0, 0]]] * 2)
+        bad = write_gain_table(tmp_path / "slow.npz")
         ControllerNode(replace(bad, dt_s=0.01), LoopTiming())
     with pytest.raises(ValueError, match="flight-condition table"):
         run_scenario(_scenario(t_start_s=0.0, t_end_s=110.0), pd_table)
