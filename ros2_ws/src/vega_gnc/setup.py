@@ -35,6 +35,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
+            'tvc_controller = vega_gnc.controller_node:main',
         ],
     },
 )

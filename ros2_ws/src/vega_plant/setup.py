@@ -37,6 +37,9 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
+            'plant = vega_plant.nodes:plant_main',
+            'ins_sensor = vega_plant.nodes:ins_main',
+            'tvc_actuator = vega_plant.nodes:actuator_main',
         ],
     },
 )

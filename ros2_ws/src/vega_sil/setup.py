@@ -36,6 +36,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
+            'recorder = vega_sil.recorder:main',
         ],
     },
 )

@@ -1,1 +1,46 @@
-"""The contract of the VEGA TVC node graph, shared by vega_plant, vega_gnc and vega_sil."""
+"""The contract of the VEGA TVC node graph, shared by vega_plant, vega_gnc and vega_sil.
+
+Modules: :mod:`~vega_bus.topics` (names, types, QoS), :mod:`~vega_bus.timing` (loop timing,
+ms stamps), :mod:`~vega_bus.schedule` (the lockstep schedule, :class:`RunInfo`, expected
+message counts), :mod:`~vega_bus.barrier` (start barrier), :mod:`~vega_bus.shell` (the ROS
+shell every node shares: parameters, waiting, exit codes, signals).
+
+SIL node contract (as implemented)
+----------------------------------
+Executables (``ros2 run`` layout): ``vega_plant plant``, ``vega_plant ins_sensor``,
+``vega_plant tvc_actuator``, ``vega_gnc tvc_controller``, ``vega_sil recorder``; node name =
+executable name; started as ``<prefix>/lib/PKG/EXE --ros-args --params-file FILE``.
+
+Parameters (one YAML, ``/**: ros__parameters:``; each node declares only what it uses and
+ignores the rest; a bad value → one line, exit 2): ``scenario`` (string, default "nominal"),
+``seed`` (int, −1 = the scenario's), ``realtime`` (bool, plant), ``controller_table``
+(string, "" = installed ``share/vega_gnc/config/lpv_controller.npz``; controller and recorder),
+``bag_path`` (string, recorder, must not exist), ``participants`` (string array, default
+:data:`vega_bus.barrier.PARTICIPANTS`), ``barrier_timeout_s`` (float, 30),
+``stall_timeout_s`` (float, 10: the longest wait for an expected input once flying).
+
+Additions to the contract first agreed (other helpers: read this):
+
+* ``/vega/run`` (std_msgs/String, RELIABLE, TRANSIENT_LOCAL): the plant publishes the run
+  description (:class:`vega_bus.schedule.RunInfo` as JSON: scenario, seed, span, loop timing)
+  at start-up, before the barrier. The controller, which reads no scenario (the flight side
+  does not import vega_plant), waits for it (up to ``barrier_timeout_s``) before joining the
+  barrier. Not recorded.
+* ``stall_timeout_s`` parameter (above).
+* ``/clock`` is published RELIABLE with depth :data:`vega_bus.topics.DATA_QUEUE_DEPTH` (not 1),
+  so that a lagging recorder loses no tick.
+* Every participant, not only the plant, waits until it holds ``/vega/ready`` from all
+  participants before its first data message (the actuator needs no input for its first
+  frames and would otherwise publish before the plant listens). Nodes that time out exit 1
+  with one line naming the missing participants.
+* Exit codes (:mod:`vega_bus.shell`): 0 = run finished or SIGINT/SIGTERM (one line
+  ``<node>: stopped by SIGTERM`` on stderr; the recorder closes the bag first); 1 = run
+  failure (barrier timeout, sequence gap, stamp out of schedule, stall); 2 = bad input.
+  A signal that arrives while the interpreter is still importing (before the handlers are
+  installed, ≈ 0.5 s) kills the process with the default action (exit −15/143).
+* Run end: plant after truth and /clock at t_end; INS after its sample t_end − frame;
+  controller after the measurement of sample t_end − frame; actuator after its frame
+  (t_end − frame, t_end]; recorder after every expected message
+  (:meth:`RunInfo.expected_counts`). Each publisher waits (≤ 5 s) for its subscribers'
+  acknowledgements before exiting.
+"""

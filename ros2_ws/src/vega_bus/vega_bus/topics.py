@@ -7,8 +7,16 @@ the generated Python class when a node needs it.
 
 Data topics are RELIABLE, VOLATILE, KEEP_LAST with a deep queue: the lockstep keeps at most a
 few frames in flight, so the depth only has to cover a slow subscriber, and nothing is ever
-dropped silently (a sequence gap fails the run). ``/clock`` is published RELIABLE depth 1 so
-that both BEST_EFFORT (rclpy's default /clock subscription) and RELIABLE readers match.
+dropped silently (a sequence gap fails the run). ``/clock`` is published RELIABLE so that both
+BEST_EFFORT (rclpy's default /clock subscription) and RELIABLE readers match, with the data
+topics' depth so that the recorder's RELIABLE reader loses no tick when it lags (a writer's
+KEEP_LAST history overwrites unacknowledged samples).
+
+Two control topics carry the start of a run, not data (they are not recorded):
+``/vega/ready`` (std_msgs/String: a participant's node name, once all its publishers have
+matched their subscribers; :mod:`vega_bus.barrier`) and ``/vega/run`` (std_msgs/String: the
+run description as JSON, published by the plant; :class:`vega_bus.schedule.RunInfo`), both
+RELIABLE, TRANSIENT_LOCAL (late joiners get them), KEEP_LAST :data:`CONTROL_QUEUE_DEPTH`.
 """
 
 from __future__ import annotations
@@ -17,9 +25,11 @@ import importlib
 from typing import NamedTuple
 
 __all__ = ["Topic", "TRUTH", "INS", "TVC_CMD", "ACTUATOR", "CLOCK", "DATA_TOPICS",
-           "ALL_TOPICS", "DATA_QUEUE_DEPTH", "message_class", "data_qos", "clock_qos"]
+           "ALL_TOPICS", "READY", "RUN", "DATA_QUEUE_DEPTH", "CONTROL_QUEUE_DEPTH",
+           "message_class", "data_qos", "clock_qos", "control_qos"]
 
 DATA_QUEUE_DEPTH = 1000  # messages; ≥ 10 s of the fastest topic (100 Hz) in flight
+CONTROL_QUEUE_DEPTH = 10  # messages per writer of /vega/ready and /vega/run (each sends one)
 
 
 class Topic(NamedTuple):
@@ -42,6 +52,10 @@ CLOCK = Topic("/clock", "rosgraph_msgs/msg/Clock", "plant", 100.0)
 DATA_TOPICS = (TRUTH, INS, TVC_CMD, ACTUATOR)
 ALL_TOPICS = DATA_TOPICS + (CLOCK,)
 
+# Control topics (not recorded): publisher "*" = every participant.
+READY = Topic("/vega/ready", "std_msgs/msg/String", "*", 0.0)
+RUN = Topic("/vega/run", "std_msgs/msg/String", "plant", 0.0)
+
 
 def message_class(type_name: str):
     """The rosidl-generated Python class of ``pkg/msg/Type`` (imports the package)."""
@@ -59,9 +73,19 @@ def data_qos():
 
 
 def clock_qos():
-    """QoS profile of /clock (RELIABLE, KEEP_LAST 1)."""
+    """QoS profile of /clock (RELIABLE, VOLATILE, KEEP_LAST DATA_QUEUE_DEPTH)."""
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=DATA_QUEUE_DEPTH,
                       reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.VOLATILE)
+
+
+def control_qos():
+    """QoS profile of /vega/ready and /vega/run (RELIABLE, TRANSIENT_LOCAL, KEEP_LAST
+    CONTROL_QUEUE_DEPTH)."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=CONTROL_QUEUE_DEPTH,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)

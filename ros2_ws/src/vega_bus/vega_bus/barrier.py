@@ -1,0 +1,151 @@
+"""The start barrier of the lockstep: nobody flies before every participant can hear everybody.
+
+Protocol (topic ``/vega/ready``, std_msgs/String, RELIABLE, TRANSIENT_LOCAL; see
+:mod:`vega_bus.topics`):
+
+1. Each participant creates its publishers and subscriptions, then polls
+   :meth:`StartBarrier.poll`. Once every one of its publishers has matched the subscribers
+   expected from the participants list (:data:`SUBSCRIBERS`: which participant subscribes to
+   which topic; the expected node names must appear among the topic's subscriptions and the
+   publisher's matched count must reach their number), it publishes its own node name on
+   ``/vega/ready``, once.
+2. Every participant also reads ``/vega/ready``; the run may begin when it holds the names of
+   all participants (:attr:`StartBarrier.complete`). The plant, time master, publishes the
+   first frame only then; the others start then too (the actuator, which needs no input for its
+   first frames, would otherwise publish before the plant listens).
+3. On timeout the caller reports :meth:`StartBarrier.missing` (one line) and exits 1.
+
+Anyone (the orchestrator, a test) may subscribe to ``/vega/ready`` to see who is ready; a
+replay tool reuses the class with its own participants and subscriber table.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Callable, Iterable, Mapping
+
+from .topics import ACTUATOR, CLOCK, INS, READY, TRUTH, TVC_CMD, control_qos
+
+__all__ = ["PARTICIPANTS", "SUBSCRIBERS", "StartBarrier"]
+
+# Node names of a full SIL run (= executable names), the default ``participants`` parameter.
+PARTICIPANTS = ("plant", "ins_sensor", "tvc_controller", "tvc_actuator", "recorder")
+
+# Which participants subscribe to each topic (the recorder records every data topic and /clock).
+SUBSCRIBERS: Mapping[str, tuple[str, ...]] = {
+    TRUTH.name: ("ins_sensor", "recorder"),
+    INS.name: ("tvc_controller", "recorder"),
+    TVC_CMD.name: ("tvc_actuator", "recorder"),
+    ACTUATOR.name: ("plant", "recorder"),
+    CLOCK.name: ("recorder",),
+}
+
+
+class StartBarrier:
+    """One participant's side of the start barrier (module docstring).
+
+    Parameters
+    ----------
+    node
+        The participant's rclpy node; its name is what it announces.
+    participants
+        Node names of every participant of the run.
+    publishers
+        The participant's publishers whose subscribers must have matched.
+    subscribers
+        Topic name → participants subscribing to it (default :data:`SUBSCRIBERS`); topics
+        absent from it need no subscriber.
+    """
+
+    def __init__(self, node, participants: Iterable[str], publishers: Iterable = (),
+                 subscribers: Mapping[str, Iterable[str]] = SUBSCRIBERS):
+        from std_msgs.msg import String
+
+        self._node = node
+        self.name = node.get_name()
+        self.participants = tuple(dict.fromkeys(participants))
+        chosen = set(self.participants)
+        self._expect = []
+        for pub in publishers:
+            topic = node.resolve_topic_name(pub.topic_name)
+            names = tuple(n for n in subscribers.get(topic, ()) if n in chosen)
+            if names:
+                self._expect.append((pub, topic, names))
+        self.ready: set[str] = set()
+        self.announced = False
+        self._String = String
+        self._pub = node.create_publisher(String, READY.name, control_qos())
+        self._sub = node.create_subscription(String, READY.name, self._on_ready, control_qos())
+
+    def _on_ready(self, msg) -> None:
+        self.ready.add(msg.data)
+
+    def matched(self) -> bool:
+        """True once every publisher has matched its expected subscribers."""
+        for pub, topic, names in self._expect:
+            if pub.get_subscription_count() < len(names):
+                return False
+            present = {i.node_name for i in self._node.get_subscriptions_info_by_topic(topic)}
+            if not present.issuperset(names):
+                return False
+        return True
+
+    def poll(self) -> bool:
+        """Announce readiness once matched; return :attr:`complete`."""
+        if not self.announced and self.matched():
+            self._pub.publish(self._String(data=self.name))
+            self.announced = True
+        return self.complete
+
+    @property
+    def complete(self) -> bool:
+        """True when every participant (this one included) has announced itself."""
+        return self.announced and self.ready.issuperset(self.participants)
+
+    def missing(self) -> list[str]:
+        """Participants not ready yet, in participants order (this one if not matched)."""
+        missing = [n for n in self.participants if n not in self.ready]
+        if not self.announced and self.name not in missing and self.name in self.participants:
+            missing.append(self.name)
+        return missing
+
+    def unmatched(self) -> list[str]:
+        """``topic→node`` pairs this participant's publishers have not matched yet."""
+        out = []
+        for _pub, topic, names in self._expect:
+            present = {i.node_name for i in self._node.get_subscriptions_info_by_topic(topic)}
+            out += [f"{topic}->{n}" for n in names if n not in present]
+        return out
+
+    def wait(self, spin_once: Callable[[float], None], timeout_s: float,
+             stop: Callable[[], bool] = lambda: False) -> bool:
+        """Spin until the barrier is complete, ``timeout_s`` passes or ``stop()`` is true.
+
+        Parameters
+        ----------
+        spin_once
+            Processes pending callbacks for at most the given time [s] (the node's executor).
+        timeout_s
+            Wall-clock limit [s].
+        stop
+            Polled between spins (e.g. a signal flag).
+
+        Returns
+        -------
+        bool
+            True if complete.
+        """
+        deadline = time.monotonic() + timeout_s
+        while not self.poll():
+            if stop() or time.monotonic() >= deadline:
+                return False
+            spin_once(0.02)
+        return True
+
+    def describe_missing(self) -> str:
+        """One line naming the participants not ready (and what this one has not matched)."""
+        text = "start barrier timed out; not ready: " + (", ".join(self.missing()) or "none")
+        unmatched = self.unmatched() if not self.announced else []
+        if unmatched:
+            text += f" (this node has no subscriber {', '.join(unmatched)})"
+        return text

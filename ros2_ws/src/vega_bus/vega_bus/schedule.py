@@ -1,0 +1,133 @@
+"""The lockstep schedule of one run: which message exists when, and what each node waits for.
+
+Plain Python (no ROS). Every node of the graph knows the run's span and the loop timing
+(:class:`RunInfo`), hence every producer's schedule; a consumer therefore knows exactly which
+messages it needs before it may advance, and the recorder and the bag checker know exactly how
+many messages a complete run holds. Time is carried by the stamps, not by timers.
+
+Frames k = 0 … n−1 start at t_k = t_start + k·frame (n = (t_end − t_start)/frame):
+
+* plant: truth and /clock at every t_k and at t_end (n + 1 messages, seq 0 … n); it integrates
+  frame k when it holds the actuator's frame k;
+* INS: one measurement per frame start t_k (n messages), stamped t_k + sensor latency;
+* controller: one command per INS sample on the controller period (sample ≡ 0 mod period,
+  absolute time), stamped sample + sensor + computing latency (:meth:`RunInfo.command_samples`);
+* actuator: frame k = the physics steps starting at t_k … t_k + frame − dt (n messages, stamped
+  t_k + frame). A command applies from its stamp + actuator latency, so frame k needs every
+  command whose sample is ≤ t_k + frame − dt − total latency (:meth:`RunInfo.commands_needed`).
+  With the default timing that is ≤ t_k − 30 ms: the actuator runs up to three frames ahead of
+  the plant, and the loop cannot deadlock as long as total latency ≥ one frame
+  (:meth:`RunInfo.check`).
+
+:class:`RunInfo` travels on the bus as JSON (``/vega/run``, published by the plant, TRANSIENT_LOCAL)
+so that the flight side (the controller), which does not read scenarios, learns the span and
+the timing from the time master.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, fields
+
+from .timing import LoopTiming
+
+__all__ = ["RunInfo"]
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """Span, timing and identity of one run.
+
+    Attributes
+    ----------
+    scenario
+        Scenario name.
+    seed
+        Scenario seed in force (after any override).
+    t_start_ms, t_end_ms
+        Span [ms], whole frames.
+    timing
+        Loop timing of the run (the scenario's delay deviation included).
+    """
+
+    scenario: str
+    seed: int
+    t_start_ms: int
+    t_end_ms: int
+    timing: LoopTiming
+
+    def check(self) -> "RunInfo":
+        """Validate the span against the timing; return self.
+
+        Raises
+        ------
+        ValueError
+            One line: span not in whole frames, empty, or a total latency shorter than one
+            frame (the data-driven lockstep would deadlock).
+        """
+        f = self.timing.frame_ms
+        if self.t_start_ms < 0 or self.t_start_ms % f or self.t_end_ms % f \
+                or self.t_end_ms <= self.t_start_ms:
+            raise ValueError(f"run span [{self.t_start_ms}, {self.t_end_ms}] ms must be whole "
+                             f"{f} ms frames with 0 <= t_start < t_end")
+        if self.timing.total_latency_ms < f:
+            raise ValueError(f"total loop latency {self.timing.total_latency_ms} ms is shorter "
+                             f"than one frame ({f} ms): the lockstep needs at least one frame")
+        return self
+
+    @property
+    def n_frames(self) -> int:
+        """Frames in [t_start, t_end)."""
+        return (self.t_end_ms - self.t_start_ms) // self.timing.frame_ms
+
+    def frame_start(self, k: int) -> int:
+        """t_k [ms]."""
+        return self.t_start_ms + k * self.timing.frame_ms
+
+    def command_samples(self) -> range:
+        """INS sample times [ms] the controller turns into commands, in order."""
+        p = self.timing.controller_period_ms
+        first = -(-self.t_start_ms // p) * p
+        last_sample = self.t_end_ms - self.timing.frame_ms
+        return range(first, last_sample + 1, p)
+
+    def commands_needed(self, k: int) -> int:
+        """Number of commands (seq 0 … N−1) the actuator must hold to integrate frame k."""
+        t = self.timing
+        limit = self.frame_start(k) + t.frame_ms - t.physics_dt_ms - t.total_latency_ms
+        samples = self.command_samples()
+        if limit < samples.start:
+            return 0
+        return min(len(samples), (limit - samples.start) // samples.step + 1)
+
+    def expected_counts(self) -> dict[str, int]:
+        """Messages of a complete run by topic (:mod:`vega_bus.topics` names)."""
+        from .topics import ACTUATOR, CLOCK, INS, TRUTH, TVC_CMD
+
+        n = self.n_frames
+        return {TRUTH.name: n + 1, CLOCK.name: n + 1, INS.name: n,
+                TVC_CMD.name: len(self.command_samples()), ACTUATOR.name: n}
+
+    def to_json(self) -> str:
+        """One-line JSON (keys sorted)."""
+        d = asdict(self)
+        return json.dumps(d, sort_keys=True)
+
+    @classmethod
+    def from_json(cls, text: str) -> "RunInfo":
+        """Parse :meth:`to_json` output.
+
+        Raises
+        ------
+        ValueError
+            One line if the text is not a valid run description.
+        """
+        try:
+            d = json.loads(text)
+            timing = LoopTiming(**{f.name: int(d["timing"][f.name])
+                                   for f in fields(LoopTiming)})
+            info = cls(str(d["scenario"]), int(d["seed"]), int(d["t_start_ms"]),
+                       int(d["t_end_ms"]), timing)
+        except (ValueError, TypeError, KeyError) as exc:
+            raise ValueError(f"malformed run description: {exc}") from None
+        return info.check()

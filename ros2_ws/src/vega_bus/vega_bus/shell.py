@@ -1,0 +1,245 @@
+"""The ROS shell every VEGA node shares: start-up, parameters, waiting, exit codes, signals.
+
+Exit codes of every node (the contract the orchestrator relies on):
+
+* 0 — the run finished (the node sent or received its last message of the run), or a stop
+  was requested with SIGINT/SIGTERM (one line on stderr says so; the recorder closes its bag
+  first, so it stays readable);
+* 1 — run failure: start-barrier timeout (the line names the missing participants), a
+  sequence gap, a stamp out of the lockstep schedule, a lockstep stall (no expected input for
+  ``stall_timeout_s``);
+* 2 — bad input: a parameter of the wrong type or value, an unknown scenario, a malformed
+  controller table; reported before the barrier.
+
+Every failure is one line on stderr, ``<node>: <what>``, never a traceback.
+
+The loop uses rclpy's EventsExecutor driven by ``spin_once`` (its ``spin()`` is broken in the
+PyPI wheels; ENVIRONMENT.md); rclpy's own signal handlers are replaced by a flag that the
+wait loops poll, so that a stop never interrupts a bag write halfway.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from typing import Any, Callable
+
+__all__ = ["EXIT_OK", "EXIT_RUN_FAILURE", "EXIT_BAD_INPUT", "NodeExit", "Stopped", "Shell",
+           "run_node", "SeqCheck"]
+
+EXIT_OK = 0
+EXIT_RUN_FAILURE = 1
+EXIT_BAD_INPUT = 2
+
+DEFAULT_STALL_TIMEOUT_S = 10.0
+
+
+class NodeExit(Exception):
+    """Leave the node with ``code`` and the one-line ``message``."""
+
+    def __init__(self, code: int, message: str):
+        super().__init__(message)
+        self.code = code
+        self.message = message
+
+
+class Stopped(Exception):
+    """A stop was requested (SIGINT/SIGTERM)."""
+
+
+class SeqCheck:
+    """Sequence-number check of one input topic: seq must run 0, 1, 2, … without a gap."""
+
+    def __init__(self, topic: str):
+        self.topic = topic
+        self.next = 0
+
+    def __call__(self, seq: int) -> None:
+        """Accept ``seq`` or raise :class:`NodeExit` (1) naming the gap."""
+        if seq != self.next:
+            raise NodeExit(EXIT_RUN_FAILURE,
+                           f"sequence gap on {self.topic}: expected seq {self.next}, got {seq}")
+        self.next += 1
+
+
+class Shell:
+    """rclpy context, one node and its EventsExecutor, with a signal flag.
+
+    Parameters
+    ----------
+    name
+        Node name (= executable name).
+    argv
+        Command line (``--ros-args …`` is handed to rclpy).
+    """
+
+    def __init__(self, name: str, argv: list[str]):
+        import rclpy
+        from rclpy.experimental import EventsExecutor
+        from rclpy.signals import SignalHandlerOptions
+
+        self.name = name
+        self.signal_name: str | None = None
+        self.failure: NodeExit | None = None
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, self._on_signal)
+        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node(name)
+        self.executor = EventsExecutor()
+        self.executor.add_node(self.node)
+        self.stall_timeout_s = DEFAULT_STALL_TIMEOUT_S
+
+    def _on_signal(self, signum, _frame) -> None:
+        self.signal_name = signal.Signals(signum).name
+
+    @property
+    def stopping(self) -> bool:
+        """True once SIGINT or SIGTERM arrived."""
+        return self.signal_name is not None
+
+    def spin_once(self, timeout_s: float) -> None:
+        """Run pending callbacks (at most ``timeout_s`` waiting); re-raise a callback's
+        failure (:meth:`guard`) and :class:`Stopped` on a signal."""
+        self.executor.spin_once(timeout_sec=timeout_s)
+        if self.failure is not None:
+            raise self.failure
+        if self.signal_name is not None:
+            raise Stopped()
+
+    def guard(self, callback: Callable) -> Callable:
+        """Wrap a subscription callback: a :class:`NodeExit` it raises is stored and raised
+        by the next :meth:`spin_once` (never through the executor)."""
+        def wrapped(msg):
+            if self.failure is not None:
+                return
+            try:
+                callback(msg)
+            except NodeExit as exc:
+                self.failure = exc
+        return wrapped
+
+    def wait_until(self, done: Callable[[], bool], what: Callable[[], str] | str,
+                   timeout_s: float | None = None, failure: str = "lockstep stall") -> None:
+        """Spin until ``done()``; :class:`NodeExit` (1) ``<failure>: waited … for <what>``
+        after ``timeout_s`` (default: the stall timeout)."""
+        if done():
+            return
+        limit = self.stall_timeout_s if timeout_s is None else timeout_s
+        deadline = time.monotonic() + limit
+        while True:
+            self.spin_once(0.1)
+            if done():
+                return
+            if time.monotonic() >= deadline:
+                text = what() if callable(what) else what
+                raise NodeExit(EXIT_RUN_FAILURE, f"{failure}: waited {limit:g} s for {text}")
+
+    # -------------------------------------------------------------------- parameters
+    def param(self, name: str, default: Any, check: Callable[[Any], str | None] | None = None
+              ) -> Any:
+        """Declare parameter ``name`` (type of ``default``) and return its value.
+
+        Raises
+        ------
+        NodeExit
+            (2) one line if the value has the wrong type or ``check(value)`` returns a
+            problem text.
+        """
+        try:
+            value = self.node.declare_parameter(name, default).value
+        except Exception as exc:  # noqa: BLE001 - rclpy raises several types for bad values
+            raise NodeExit(EXIT_BAD_INPUT, f"parameter '{name}': {_one_line(exc)}") from None
+        problem = check(value) if check is not None else None
+        if problem:
+            raise NodeExit(EXIT_BAD_INPUT, f"parameter '{name}': {problem} (got {value!r})")
+        return value
+
+    def common_params(self) -> tuple[tuple[str, ...], float]:
+        """The ``participants`` and ``barrier_timeout_s`` parameters (and ``stall_timeout_s``,
+        which sets :attr:`stall_timeout_s`)."""
+        from .barrier import PARTICIPANTS
+
+        participants = tuple(self.param(
+            "participants", list(PARTICIPANTS),
+            lambda v: None if v and all(isinstance(x, str) and x for x in v)
+            else "must be a non-empty list of node names"))
+        timeout = self.param("barrier_timeout_s", 30.0,
+                             lambda v: None if v > 0 else "must be > 0")
+        self.stall_timeout_s = self.param("stall_timeout_s", DEFAULT_STALL_TIMEOUT_S,
+                                          lambda v: None if v > 0 else "must be > 0")
+        return participants, timeout
+
+    def barrier(self, participants, publishers, timeout_s: float):
+        """Run the start barrier (:class:`vega_bus.barrier.StartBarrier`); :class:`NodeExit`
+        (1) naming the missing participants on timeout."""
+        from .barrier import StartBarrier
+
+        barrier = StartBarrier(self.node, participants, publishers)
+        if not barrier.wait(self.spin_once, timeout_s):
+            raise NodeExit(EXIT_RUN_FAILURE, barrier.describe_missing())
+        return barrier
+
+    def flush(self, publishers, timeout_s: float = 5.0) -> None:
+        """Wait until every subscriber acknowledged what ``publishers`` sent (or timeout), so
+        that exiting right after the last message loses nothing."""
+        from rclpy.duration import Duration
+
+        deadline = time.monotonic() + timeout_s
+        for pub in publishers:
+            left = max(0.0, deadline - time.monotonic())
+            pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9)))
+
+    def close(self) -> None:
+        """Destroy the node and shut rclpy down (idempotent)."""
+        import rclpy
+
+        try:
+            self.executor.shutdown()
+            self.node.destroy_node()
+        finally:
+            rclpy.try_shutdown()
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def run_node(name: str, body: Callable[[Shell], int | None], argv: list[str] | None = None
+             ) -> int:
+    """Run ``body(shell)`` as node ``name`` and exit with the contract's code.
+
+    ``body`` returns normally when the run is finished (exit 0). :class:`NodeExit`,
+    :class:`Stopped` (SIGINT/SIGTERM: exit 0), KeyboardInterrupt and rclpy's
+    ExternalShutdownException are turned into one line on stderr and the exit code.
+    """
+    argv = sys.argv if argv is None else argv
+    shell = None
+    code = EXIT_OK
+    try:
+        shell = Shell(name, argv)
+        result = body(shell)
+        code = EXIT_OK if result is None else int(result)
+    except NodeExit as exc:
+        print(f"{name}: {exc.message}", file=sys.stderr)
+        code = exc.code
+    except (Stopped, KeyboardInterrupt):
+        why = shell.signal_name if shell is not None and shell.signal_name else "SIGINT"
+        print(f"{name}: stopped by {why}", file=sys.stderr)
+        code = EXIT_OK
+    except Exception as exc:  # noqa: BLE001 - ExternalShutdownException and rclpy init errors
+        if type(exc).__name__ == "ExternalShutdownException":
+            print(f"{name}: stopped (ROS shutdown)", file=sys.stderr)
+            code = EXIT_OK
+        else:
+            print(f"{name}: {type(exc).__name__}: {_one_line(exc)}", file=sys.stderr)
+            code = EXIT_RUN_FAILURE
+    finally:
+        if shell is not None:
+            try:
+                shell.close()
+            except Exception:  # noqa: BLE001 - best effort at exit
+                pass
+    sys.stdout.flush()
+    sys.stderr.flush()
+    return code
