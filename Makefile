@@ -2,7 +2,7 @@
 #
 #   make setup   .venv from requirements.txt, colcon build of ros2_ws, offline_synthesis, `vega`
 #   make test    the whole pytest suite (sets up first)
-#   make sil     fly the default SIL scenario (sets up first)
+#   make sil     fly the default SIL scenario into bags/ (sets up first; SIL_ARGS=...)
 #   make clean   remove the workspace build products and caches; `make distclean` also .venv
 #
 # Every step is incremental: a second `make setup` with nothing changed does nothing.
@@ -20,6 +20,7 @@ PYTHON ?= python3
 VENV := $(ROOT)/.venv
 WS := $(ROOT)/ros2_ws
 PYTEST_ARGS ?=
+SIL_ARGS ?=
 
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 unexport ROS_LOCALHOST_ONLY ROS_STATIC_PEERS
@@ -94,8 +95,9 @@ $(VENV)/bin/vega-env: $(ROOT)/Makefile | $(VENV)/bin/python
 test: setup
 	cd $(ROOT) && $(VENV)/bin/vega-env python -m pytest tests $(PYTEST_ARGS)
 
+# SIL_ARGS: more `vega sil run` arguments, e.g. make sil SIL_ARGS="--scenario thesis --seed 2"
 sil: setup
-	$(VENV)/bin/vega sil run
+	$(VENV)/bin/vega sil run --out $(ROOT)/bags $(SIL_ARGS)
 
 clean:
 	rm -rf $(WS)/build $(WS)/install $(WS)/log $(ROOT)/.pytest_cache

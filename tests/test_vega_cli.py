@@ -83,12 +83,6 @@ def test_unknown_command_is_a_usage_error():
     assert exit_info.value.code == 2
 
 
-def test_sil_is_not_there_yet(capsys):
-    """``vega sil run`` says it lands with the SIL issue, one line, exit status 2."""
-    assert cli.main(["sil", "run"]) == 2
-    assert capsys.readouterr().err == "vega sil: not yet: SIL lands with the SIL issue\n"
-
-
 def test_node_unknown_package(capsys):
     """``vega node`` with a package missing from the ament index: one-line error, exit 2."""
     assert cli.main(["node", "no_such_package", "talker"]) == 2
