@@ -3,7 +3,8 @@
 Prints the requirement table (thesis Table 5.1 form, with margins), the health checks and the
 verdict (:mod:`vega_sil.bagcheck`). Exit status: 0 if everything passes, 1 if a requirement
 or a health check fails, 2 for a bad bag (missing, corrupt, foreign: one line on stderr).
-``--json FILE`` also writes the verdict as JSON.
+``--json FILE`` also writes the verdict as JSON; ``--report DIR`` the run report
+(:func:`vega_sil.report.write_report`: JSON, Markdown, PNG plots), as ``vega sil run`` does.
 """
 
 from __future__ import annotations
@@ -18,7 +19,12 @@ def _run(args: argparse.Namespace) -> int:
     from vega_sil.requirements import load_requirements
 
     spec = load_requirements(args.requirements) if args.requirements else None
-    result = check_bag(args.bag, spec)
+    if args.report:
+        from vega_sil.report import write_report
+
+        result = write_report(args.bag, args.report, spec)
+    else:
+        result = check_bag(args.bag, spec)
     print(result.table())
     if args.json:
         result.write_json(args.json)
@@ -37,6 +43,8 @@ def register(subparsers) -> None:
                     "something fails; 2: bad bag.")
     p.add_argument("bag", metavar="BAG", help="run bag directory (rosbag2, MCAP)")
     p.add_argument("--json", metavar="FILE", help="also write the verdict as JSON to FILE")
+    p.add_argument("--report", metavar="DIR",
+                   help="also write the run report (JSON, Markdown, PNG plots) into DIR")
     p.add_argument("--requirements", metavar="FILE",
                    help="requirement file (default: the shipped vega_sil/config/"
                         "requirements.yaml)")

@@ -1,0 +1,56 @@
+"""The run report (vega_sil.report): bag → JSON + Markdown + PNG plots, and the verdict."""
+
+import json
+
+import pytest
+
+from fixture_bags import messages_on, short_run, write_bag
+from vega_bus import topics
+from vega_sil import bagio, cli, report
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    return short_run(tmp_path_factory.mktemp("run"))
+
+
+def test_report_of_a_good_run(run, tmp_path):
+    bag = write_bag(tmp_path / "bag", run)
+    check = report.write_report(bag, tmp_path / "report")
+    assert check.passed and check.exit_code == 0
+    out = tmp_path / "report"
+    data = json.loads((out / "report.json").read_text())
+    assert data.pop("plots") == report.PLOTS
+    assert data == json.loads(json.dumps(check.to_dict()))
+    for name in report.PLOTS:
+        assert (out / name).read_bytes()[:8] == PNG_SIGNATURE, name
+    md = (out / "report.md").read_text()
+    assert "**Verdict: PASS**" in md
+    # the ∫|β|dt row stays one table row: its pipes are escaped
+    row = next(line for line in md.splitlines() if "∫" in line and line.startswith("|"))
+    assert "∫\\|β\\|dt" in row and row.count(" | ") == 7
+    for name in report.PLOTS:
+        assert f"]({name})" in md
+
+
+def test_report_names_the_failure(run, tmp_path, capsys):
+    def mutate(messages):
+        i = messages_on(messages, topics.TRUTH.name)[200]
+        messages[i][2].drift_rate_mps = 16.25
+    bag = write_bag(tmp_path / "bag", run, mutate)
+    status = cli.main(["check", str(bag), "--report", str(tmp_path / "report")])
+    out = capsys.readouterr().out
+    assert status == 1 and "verdict: FAIL" in out
+    md = (tmp_path / "report" / "report.md").read_text()
+    assert "**Verdict: FAIL**" in md
+    assert "- Lateral control performance ż: 16.25 m/s at 12.000 s exceeds its bound " \
+           "15 m/s by 1.25 m/s" in md
+    assert json.loads((tmp_path / "report" / "report.json").read_text())["exit_code"] == 1
+
+
+def test_bad_bag_writes_nothing(tmp_path):
+    with pytest.raises(bagio.BagError, match="no such file"):
+        report.write_report(tmp_path / "missing", tmp_path / "report")
+    assert not (tmp_path / "report").exists()
