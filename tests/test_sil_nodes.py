@@ -1,0 +1,342 @@
+"""The SIL nodes as real processes: lockstep schedule, start barrier, controller input
+validation over DDS, bad inputs, recorder bag of a short run.
+
+Each ROS test starts the installed executables (``lib/PKG/EXE``, found like ``ros2 run``)
+with the test run's ROS_DOMAIN_ID and LOCALHOST discovery (``ros_env`` fixture); every process
+is reaped (SIGTERM, then SIGKILL) even when a test fails. Waits are on conditions with
+deadlines, never fixed sleeps.
+"""
+
+import math
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fixture_tables import write_pd_table
+from vega_bus import topics
+from vega_bus.barrier import PARTICIPANTS
+from vega_bus.schedule import RunInfo
+from vega_bus.timing import LoopTiming, ms_to_stamp
+from vega_gnc.controller_runtime import (STATUS_HOLD_LAST, STATUS_OK, STATUS_SAFE_ZERO,
+                                         STATUS_VELOCITY_CLAMPED)
+from vega_plant.scenario import scenario_path
+from vega_sil.commands.node import find_executable
+from vega_sil.recorder import seq_of, stamp_ns
+
+EXECUTABLES = {"plant": "vega_plant", "ins_sensor": "vega_plant", "tvc_actuator": "vega_plant",
+               "tvc_controller": "vega_gnc", "recorder": "vega_sil"}
+PROCESS_TIMEOUT_S = 60.0
+
+
+# ----------------------------------------------------------------------------- fixtures
+@pytest.fixture(scope="module")
+def pd_table(tmp_path_factory):
+    """The PD fixture table (tests/fixture_tables.py): (path, ControllerTable)."""
+    path = tmp_path_factory.mktemp("pd") / "pd.npz"
+    return path, write_pd_table(path)
+
+
+@pytest.fixture
+def nodes(ros_env):
+    """Start SIL executables; every one is stopped and reaped at teardown."""
+    procs = []
+
+    def start(name, params_file, *extra):
+        exe = find_executable(EXECUTABLES[name], name)
+        proc = subprocess.Popen([exe, "--ros-args", "--params-file", str(params_file), *extra],
+                                env=ros_env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)
+        procs.append(proc)
+        return proc
+
+    yield start
+    for proc in procs:
+        if proc.poll() is None:
+            proc.terminate()
+    for proc in procs:
+        try:
+            proc.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.communicate()
+
+
+def _finish(proc, timeout=PROCESS_TIMEOUT_S):
+    out, err = proc.communicate(timeout=timeout)
+    return proc.returncode, out, err
+
+
+def _params(path: Path, **values) -> Path:
+    lines = ["/**:", "  ros__parameters:"]
+    for key, value in values.items():
+        if isinstance(value, bool):
+            text = "true" if value else "false"
+        elif isinstance(value, str):
+            text = f'"{value}"'
+        elif isinstance(value, (list, tuple)):
+            text = "[" + ", ".join(f'"{v}"' for v in value) + "]"
+        else:
+            text = repr(value)
+        lines.append(f"    {key}: {text}")
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _short_scenario(tmp_path, t_end_s=11.0) -> Path:
+    """The thesis scenario cut to 10 s … ``t_end_s`` (a YAML file of its own)."""
+    text = scenario_path("thesis").read_text()
+    text = text.replace("name: thesis", "name: short").replace("t_end_s: 90.0",
+                                                                f"t_end_s: {t_end_s}")
+    path = tmp_path / "short.yaml"
+    path.write_text(text)
+    return path
+
+
+# ----------------------------------------------------------------------------- schedule
+def test_schedule_counts_and_actuator_needs():
+    info = RunInfo("x", 1, 10_000, 11_000, LoopTiming()).check()
+    assert info.n_frames == 100
+    assert list(info.command_samples())[:3] == [10_000, 10_020, 10_040]
+    assert info.expected_counts() == {"/vega/truth": 101, "/clock": 101, "/vega/ins": 100,
+                                      "/vega/tvc_cmd": 50, "/vega/actuator": 100}
+    # command of sample s applies at s + 39 ms; frame k integrates steps t_k … t_k + 9 ms
+    needed = [info.commands_needed(k) for k in range(info.n_frames)]
+    for k, n in enumerate(needed):
+        t_last_step = info.frame_start(k) + 9
+        applying = [s for s in info.command_samples() if s + 39 <= t_last_step]
+        assert n == len(applying)
+    assert needed[:6] == [0, 0, 0, 1, 1, 2]      # the actuator runs 3 frames ahead
+    # a span starting off the controller period: first command at the next multiple of 20
+    assert RunInfo("x", 1, 10, 100, LoopTiming()).command_samples()[0] == 20
+    assert RunInfo.from_json(info.to_json()) == info
+
+
+@pytest.mark.parametrize("info, problem", [
+    (RunInfo("x", 1, 10_005, 11_000, LoopTiming()), "whole 10 ms frames"),
+    (RunInfo("x", 1, 11_000, 11_000, LoopTiming()), "whole 10 ms frames"),
+    (RunInfo("x", 1, 0, 100, LoopTiming(sensor_latency_ms=0, computing_latency_ms=0,
+                                        actuator_latency_ms=5)), "shorter than one frame"),
+])
+def test_schedule_rejects_bad_runs(info, problem):
+    with pytest.raises(ValueError, match=problem):
+        info.check()
+
+
+def test_run_description_rejects_malformed_json():
+    for text in ('{"scenario": "x"}', "not json", '{"scenario": "x", "seed": 1, '
+                 '"t_start_ms": 0, "t_end_ms": 100, "timing": {"frame_ms": 0}}'):
+        with pytest.raises(ValueError, match="malformed run description"):
+            RunInfo.from_json(text)
+
+
+def test_recorder_reads_stamp_and_seq_from_cdr():
+    from rclpy.serialization import serialize_message
+    from vega_msgs.msg import InsMeasurement, VehicleState
+
+    for frame_id in ("", "b", "base_link", "abc"):
+        m = InsMeasurement()
+        m.header.frame_id = frame_id
+        m.header.stamp.sec, m.header.stamp.nanosec = 12, 345_000_000
+        m.sample_stamp.sec = 99
+        m.seq = 4_000_000_001
+        data = serialize_message(m)
+        assert stamp_ns(data) == 12_345_000_000 and seq_of(data, 8) == 4_000_000_001
+        v = VehicleState()
+        v.header.frame_id = frame_id
+        v.seq = 77
+        assert seq_of(serialize_message(v), 0) == 77
+
+
+# ----------------------------------------------------------------------------- ROS: bad input
+@pytest.mark.ros
+def test_malformed_controller_table_exits_2_with_one_line(nodes, tmp_path):
+    bad = tmp_path / "broken.npz"
+    bad.write_bytes(b"not a zip archive")
+    proc = nodes("tvc_controller", _params(tmp_path / "p.yaml", controller_table=str(bad)))
+    code, _out, err = _finish(proc)
+    assert code == 2
+    assert err.count("\n") == 1 and err.startswith("tvc_controller: ") and str(bad) in err
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize("name, key, value, text", [
+    ("plant", "scenario", "no_such_scenario", "unknown scenario 'no_such_scenario'"),
+    ("plant", "seed", -5, "parameter 'seed'"),
+    ("tvc_actuator", "barrier_timeout_s", "ten", "parameter 'barrier_timeout_s'"),
+])
+def test_bad_parameters_exit_2_with_one_line(nodes, tmp_path, name, key, value, text):
+    proc = nodes(name, _params(tmp_path / "p.yaml", **{key: value}))
+    code, _out, err = _finish(proc)
+    assert code == 2 and err.count("\n") == 1 and text in err, err
+
+
+@pytest.mark.ros
+def test_barrier_timeout_names_the_missing_participant(nodes, tmp_path):
+    proc = nodes("plant", _params(tmp_path / "p.yaml", scenario=str(_short_scenario(tmp_path)),
+                                  participants=["plant", "ins_sensor"], barrier_timeout_s=1.0))
+    code, _out, err = _finish(proc)
+    assert code == 1
+    assert err.count("\n") == 1 and "start barrier timed out" in err and "ins_sensor" in err
+    assert "recorder" not in err    # not a participant of this run
+
+
+# ----------------------------------------------------------------------------- ROS: controller
+class _Driver:
+    """The test process as the INS and the time master of a controller node."""
+
+    def __init__(self, info: RunInfo):
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from std_msgs.msg import String
+        from vega_msgs.msg import InsMeasurement, TvcCommand
+
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context,
+                   signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+        self.node = rclpy.create_node("test_driver", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.run = self.node.create_publisher(String, topics.RUN.name, topics.control_qos())
+        self.run.publish(String(data=info.to_json()))
+        self.ins = self.node.create_publisher(InsMeasurement, topics.INS.name,
+                                              topics.data_qos())
+        self.commands = []
+        self.ready = set()
+        self.node.create_subscription(TvcCommand, topics.TVC_CMD.name, self.commands.append,
+                                      topics.data_qos())
+        self.node.create_subscription(String, topics.READY.name,
+                                      lambda m: self.ready.add(m.data), topics.control_qos())
+        self._msg = InsMeasurement
+
+    def spin_until(self, done, timeout_s=30.0):
+        deadline = time.monotonic() + timeout_s
+        while not done():
+            assert time.monotonic() < deadline, "timed out waiting on the controller node"
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def send(self, seq, sample_ms, stamp_ms, pitch=0.01, v=None, valid=True, nanosec_off=0):
+        m = self._msg()
+        m.header.stamp.sec, m.header.stamp.nanosec = ms_to_stamp(stamp_ms)
+        m.sample_stamp.sec, ns = ms_to_stamp(sample_ms)
+        m.sample_stamp.nanosec = ns + nanosec_off
+        m.seq = seq
+        m.pitch_rad, m.pitch_rate_radps, m.drift_m, m.drift_rate_mps = pitch, 0.0, 0.0, 0.0
+        m.velocity_mps = v
+        m.valid = valid
+        self.ins.publish(m)
+
+    def close(self):
+        import rclpy
+
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def _controller_with_driver(nodes, tmp_path, table_path, n_frames):
+    info = RunInfo("driven", 0, 10_000, 10_000 + 10 * n_frames, LoopTiming()).check()
+    driver = _Driver(info)
+    proc = nodes("tvc_controller", _params(tmp_path / "p.yaml", controller_table=str(table_path),
+                                           participants=["tvc_controller"]))
+    driver.spin_until(lambda: "tvc_controller" in driver.ready
+                      and driver.ins.get_subscription_count() >= 1)
+    return driver, proc
+
+
+@pytest.mark.ros
+def test_controller_flags_bad_measurements_and_never_crashes(nodes, tmp_path, pd_table):
+    """NaN, stale, out-of-order, off-grid stamps and velocities over real DDS → the
+    documented status flags; the node finishes its run and exits 0."""
+    path, table = pd_table
+    v_in = float(np.mean(table.grid_v_mps[:2]))
+    v_out = float(table.grid_v_mps[-1]) + 500.0
+    driver, proc = _controller_with_driver(nodes, tmp_path, path, n_frames=14)
+    try:
+        # (seq, sample ms, header stamp ms, kwargs); odd seqs are off the 20 ms period
+        plan = [
+            (0, 10_000, 10_012, {}),                                  # fresh, valid → OK
+            (1, 10_010, 10_022, {}),
+            (2, 10_020, 10_032, {"pitch": math.nan}),                 # NaN → hold last
+            (3, 10_030, 10_042, {}),
+            (4, 10_040, 10_140, {}),                                  # 100 ms old → stale
+            (5, 10_050, 10_062, {}),
+            (6, 10_000, 10_072, {}),                                  # older sample → order
+            (7, 10_070, 10_082, {}),
+            (8, 10_080, 10_092, {"v": v_out}),                        # off the grid → clamp
+            (9, 10_090, 10_102, {}),
+            (10, 10_100, 10_112, {"nanosec_off": 5}),                 # not on a ms → invalid
+            (11, 10_110, 10_122, {}),
+            (12, 10_400, 10_412, {"valid": False}),                   # invalid > 0.2 s → zero
+            (13, 10_410, 10_422, {}),
+        ]
+        for seq, sample, stamp, kw in plan:
+            driver.send(seq, sample, stamp, **{"v": v_in, **kw})
+        driver.spin_until(lambda: len(driver.commands) == 7)
+        code, _out, err = _finish(proc)
+    finally:
+        driver.close()
+    assert code == 0 and err == ""
+    c = driver.commands
+    assert [m.seq for m in c] == list(range(7))
+    assert [m.status for m in c] == [STATUS_OK, STATUS_HOLD_LAST, STATUS_HOLD_LAST,
+                                     STATUS_HOLD_LAST, STATUS_VELOCITY_CLAMPED,
+                                     STATUS_HOLD_LAST, STATUS_SAFE_ZERO]
+    assert c[0].deflection_cmd_rad != 0.0
+    assert all(m.deflection_cmd_rad == c[0].deflection_cmd_rad for m in c[1:4])
+    assert c[5].deflection_cmd_rad == c[4].deflection_cmd_rad and c[6].deflection_cmd_rad == 0.0
+    # stamps: arrival + 12 ms; sample stamp carried over
+    assert (c[0].header.stamp.sec, c[0].header.stamp.nanosec) == ms_to_stamp(10_024)
+    assert (c[4].sample_stamp.sec, c[4].sample_stamp.nanosec) == ms_to_stamp(10_080)
+    assert all(m.compute_time_s > 0.0 for m in c)
+
+
+@pytest.mark.ros
+def test_controller_sequence_gap_fails_the_run(nodes, tmp_path, pd_table):
+    path, table = pd_table
+    v = float(table.grid_v_mps[0])
+    driver, proc = _controller_with_driver(nodes, tmp_path, path, n_frames=4)
+    try:
+        driver.send(0, 10_000, 10_012, v=v)
+        driver.send(2, 10_020, 10_032, v=v)       # seq 1 lost
+        code, _out, err = _finish(proc)
+    finally:
+        driver.close()
+    assert code == 1 and err.count("\n") == 1
+    assert "sequence gap on /vega/ins: expected seq 1, got 2" in err
+
+
+# ----------------------------------------------------------------------------- ROS: a short run
+@pytest.mark.ros
+def test_short_run_records_a_complete_bag(nodes, tmp_path, pd_table):
+    """Five processes started in reverse order fly 10–11 s in lockstep; the recorder's bag
+    reads back with every expected message, gap-free sequences, log time = stamp, and the
+    in-process simulation's numbers."""
+    from vega_sil.bagio import META_SCENARIO, META_SEED, read_run_bag
+    from vega_sil.closed_loop import run_scenario
+
+    path, table = pd_table
+    scenario = _short_scenario(tmp_path, t_end_s=11.0)
+    bag = tmp_path / "bag"
+    params = _params(tmp_path / "p.yaml", scenario=str(scenario), controller_table=str(path),
+                     bag_path=str(bag))
+    procs = {name: nodes(name, params) for name in reversed(PARTICIPANTS)}
+    results = {name: _finish(proc) for name, proc in procs.items()}
+    for name, (code, _out, err) in results.items():
+        assert code == 0 and err == "", (name, err)
+    assert "flew 1 s" in results["plant"][1]
+
+    run = read_run_bag(bag)
+    assert run.metadata[META_SCENARIO] == "short" and run.metadata[META_SEED] == "1"
+    expected = RunInfo("short", 1, 10_000, 11_000, LoopTiming()).expected_counts()
+    for name, count in expected.items():
+        cols = run[name]
+        assert len(cols) == count, name
+        assert np.array_equal(cols.log_time_ns, cols["stamp_ns"]), name
+        if name != topics.CLOCK.name:
+            assert np.array_equal(cols["seq"], np.arange(count)), name
+    ref = run_scenario(scenario, table)
+    assert np.array_equal(run["/vega/truth"]["pitch_rad"], ref.theta_rad)
+    assert np.array_equal(run["/vega/tvc_cmd"]["deflection_cmd_rad"], ref.cmd_rad)
