@@ -41,6 +41,6 @@ Additions to the contract first agreed (other helpers: read this):
 * Run end: plant after truth and /clock at t_end; INS after its sample t_end − frame;
   controller after the measurement of sample t_end − frame; actuator after its frame
   (t_end − frame, t_end]; recorder after every expected message
-  (:meth:`RunInfo.expected_counts`). Each publisher waits (≤ 5 s) for its subscribers'
+  (:meth:`RunInfo.expected_counts`). Each publisher waits (up to stall_timeout_s) for its subscribers'
   acknowledgements before exiting.
 """

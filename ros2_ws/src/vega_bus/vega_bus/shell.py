@@ -135,6 +135,19 @@ class Shell:
                 text = what() if callable(what) else what
                 raise NodeExit(EXIT_RUN_FAILURE, f"{failure}: waited {limit:g} s for {text}")
 
+    def inbox(self, msg_type, topic: str, qos) -> list:
+        """Subscribe to ``topic``; return the list its messages are appended to, in arrival
+        order, after the sequence check (:class:`SeqCheck`; a gap fails the run)."""
+        box: list = []
+        check = SeqCheck(topic)
+
+        def on_message(msg):
+            check(msg.seq)
+            box.append(msg)
+
+        self.node.create_subscription(msg_type, topic, self.guard(on_message), qos)
+        return box
+
     # -------------------------------------------------------------------- parameters
     def param(self, name: str, default: Any, check: Callable[[Any], str | None] | None = None
               ) -> Any:
@@ -180,12 +193,15 @@ class Shell:
             raise NodeExit(EXIT_RUN_FAILURE, barrier.describe_missing())
         return barrier
 
-    def flush(self, publishers, timeout_s: float = 5.0) -> None:
-        """Wait until every subscriber acknowledged what ``publishers`` sent (or timeout), so
-        that exiting right after the last message loses nothing."""
+    def flush(self, publishers, timeout_s: float | None = None) -> None:
+        """Wait until every subscriber acknowledged what ``publishers`` sent, so that exiting
+        right after the last message loses nothing (a lagging recorder may still be a few
+        hundred messages behind, and Fast DDS repairs a lost sample only at its next heartbeat,
+        every few seconds). Gives up after ``timeout_s`` (default: the stall timeout)."""
         from rclpy.duration import Duration
 
-        deadline = time.monotonic() + timeout_s
+        limit = self.stall_timeout_s if timeout_s is None else timeout_s
+        deadline = time.monotonic() + limit
         for pub in publishers:
             left = max(0.0, deadline - time.monotonic())
             pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9)))

@@ -34,7 +34,7 @@ from typing import NamedTuple
 
 from vega_bus import topics
 from vega_bus.schedule import RunInfo
-from vega_bus.shell import EXIT_BAD_INPUT, NodeExit, SeqCheck, Shell, run_node
+from vega_bus.shell import EXIT_BAD_INPUT, NodeExit, Shell, run_node
 from vega_bus.timing import ms_to_stamp
 
 __all__ = ["default_table_path", "Sample", "to_sample", "main"]
@@ -113,15 +113,7 @@ def _controller(shell: Shell) -> None:
         raise NodeExit(EXIT_BAD_INPUT, f"{path}: {exc}") from None
 
     pub = node.create_publisher(TvcCommand, topics.TVC_CMD.name, topics.data_qos())
-    queue = []
-    seq = SeqCheck(topics.INS.name)
-
-    def on_ins(msg):
-        seq(msg.seq)
-        queue.append(msg)
-
-    node.create_subscription(InsMeasurement, topics.INS.name, shell.guard(on_ins),
-                             topics.data_qos())
+    queue = shell.inbox(InsMeasurement, topics.INS.name, topics.data_qos())
     shell.barrier(participants, [pub], barrier_timeout)
 
     out = TvcCommand()

@@ -96,15 +96,7 @@ def _plant(shell: Shell) -> None:
     run_pub.publish(String(data=info.to_json()))
     truth_pub = node.create_publisher(VehicleState, topics.TRUTH.name, topics.data_qos())
     clock_pub = node.create_publisher(Clock, topics.CLOCK.name, topics.clock_qos())
-    frames = []
-    seq = SeqCheck(topics.ACTUATOR.name)
-
-    def on_actuator(msg):
-        seq(msg.seq)
-        frames.append(msg)
-
-    node.create_subscription(ActuatorState, topics.ACTUATOR.name, shell.guard(on_actuator),
-                             topics.data_qos())
+    frames = shell.inbox(ActuatorState, topics.ACTUATOR.name, topics.data_qos())
     shell.barrier(participants, [truth_pub, clock_pub], barrier_timeout)
 
     msg, clock = VehicleState(), Clock()
@@ -161,15 +153,7 @@ def _ins(shell: Shell) -> None:
     ins = make_ins(scenario, seed=seed)
     context, deviations = default_context(), scenario.deviations
     pub = node.create_publisher(InsMeasurement, topics.INS.name, topics.data_qos())
-    truths = []
-    seq = SeqCheck(topics.TRUTH.name)
-
-    def on_truth(msg):
-        seq(msg.seq)
-        truths.append(msg)
-
-    node.create_subscription(VehicleState, topics.TRUTH.name, shell.guard(on_truth),
-                             topics.data_qos())
+    truths = shell.inbox(VehicleState, topics.TRUTH.name, topics.data_qos())
     shell.barrier(participants, [pub], barrier_timeout)
 
     out = InsMeasurement()
