@@ -93,6 +93,8 @@ def test_metadata_and_qos_in_metadata_yaml(sample_bag):
     assert ins["type_description_hash"] == \
         bagio.vega_typestore().hash_rihs01(topics.INS.type_name)
     assert by_name[topics.CLOCK.name]["message_count"] == 2
+    clock_qos = by_name[topics.CLOCK.name]["topic_metadata"]["offered_qos_profiles"][0]
+    assert clock_qos["depth"] == topics.clock_qos().depth
 
 
 def test_writer_closes_on_error_and_keeps_the_bag_readable(tmp_path):

@@ -113,16 +113,19 @@ def vega_typestore():
 
 
 def topic_qos(topic: topics.Topic):
-    """The QoS the publishers of ``topic`` offer, as a rosbags ``Qos`` (for the metadata)."""
+    """The QoS the publishers of ``topic`` offer (:func:`vega_bus.topics.data_qos` /
+    :func:`~vega_bus.topics.clock_qos`), as a rosbags ``Qos`` for the bag's metadata."""
     from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
                                     QosReliability, QosTime)
 
-    depth = 1 if topic is topics.CLOCK else topics.DATA_QUEUE_DEPTH
+    profile = topics.clock_qos() if topic is topics.CLOCK else topics.data_qos()
     # "infinite" deadline/lifespan/lease as Jazzy's recorder stores what the graph reports
     # for rclpy's default profile (RMW_DURATION_INFINITE = 2^63 - 1 ns)
     infinite = QosTime(9_223_372_036, 854_775_807)
-    return Qos(QosHistory.KEEP_LAST, depth, QosReliability.RELIABLE, QosDurability.VOLATILE,
-               infinite, infinite, QosLiveliness.AUTOMATIC, infinite, False)
+    return Qos(QosHistory[profile.history.name], profile.depth,
+               QosReliability[profile.reliability.name],
+               QosDurability[profile.durability.name], infinite, infinite,
+               QosLiveliness.AUTOMATIC, infinite, False)
 
 
 # ----------------------------------------------------------------------------- metadata
