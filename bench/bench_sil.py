@@ -6,8 +6,9 @@ Usage: .venv/bin/vega-env python bench/bench_sil.py [--scenario NAME] [--table T
 Runs ``vega sil run`` (the real command line, five node processes, lockstep over Fast DDS on
 localhost) on the scenario (default ``nominal``: the whole 0–100 s flight on the nonlinear
 plant) and reports, per run: the wall time from the start barrier to the last node's exit
-(the flight), the real-time factor = simulated span / that wall time, the start-up time (process
-start to barrier) and the whole command's wall time (start-up, flight, report). Without
+(the flight), the real-time factor = simulated span / that wall time (and the plant's own
+figure from its log: first to last frame), the start-up time (process start to barrier) and the
+whole command's wall time (start-up, flight, report). Without
 ``--table`` the installed ``lpv_controller.npz`` is flown if it exists, else the PD fixture
 table of tests/fixture_tables.py (the controller's cost per step hardly depends on the table).
 The run directories go to a temporary directory that is removed afterwards.
@@ -25,6 +26,7 @@ ROOT = Path(__file__).resolve().parent.parent
 INSTALLED = ROOT / "ros2_ws/src/vega_gnc/config/lpv_controller.npz"
 _FLEW = re.compile(r"flew (?P<span>[\d.]+) s in (?P<wall>[\d.]+) s wall")
 _BARRIER = re.compile(r"start barrier complete after (?P<wall>[\d.]+) s")
+_PLANT = re.compile(r"plant: flew [\d.]+ s in (?P<wall>[\d.]+) s wall")
 
 
 def _table(argument, scratch):
@@ -59,9 +61,14 @@ def main():
             if result.returncode not in (0, 1) or flew is None:
                 sys.exit(f"bench_sil: run failed (exit {result.returncode}):\n{result.stderr}")
             span, wall = float(flew["span"]), float(flew["wall"])
+            plant_log = Path(scratch) / f"run{run}" / "logs" / "plant.log"
+            plant = _PLANT.search(plant_log.read_text()) if plant_log.is_file() else None
+            plant_text = (f"; the plant's own loop {span / float(plant['wall']):.1f}x"
+                          if plant else "")
             print(f"run {run + 1}: {span:g} s flight in {wall:.2f} s wall = {span / wall:.1f}x "
-                  f"real time; start-up {float(barrier['wall']):.1f} s; whole command "
-                  f"{total:.1f} s (exit {result.returncode})")
+                  f"real time (barrier to the last node's exit{plant_text}); start-up "
+                  f"{float(barrier['wall']):.1f} s; whole command {total:.1f} s "
+                  f"(exit {result.returncode})")
 
 
 if __name__ == "__main__":

@@ -169,6 +169,17 @@ def test_existing_output_is_never_overwritten(tmp_path, capsys, no_start, pd_tab
     assert "exists and is not a directory" in capsys.readouterr().err
 
 
+def test_missing_default_table_is_named(tmp_path, capsys, no_start, monkeypatch):
+    """Without --table and without an installed table: one line naming the missing file and
+    the way out, exit 2."""
+    missing = tmp_path / "share" / "vega_gnc" / "config" / "lpv_controller.npz"
+    monkeypatch.setattr(sil, "default_table_path", lambda: missing)
+    assert cli.main(["sil", "run", "--scenario", "thesis", "--out", str(tmp_path / "r")]) == 2
+    assert capsys.readouterr().err == (
+        f"vega: error: no controller table: {missing} is not installed (the LPV synthesis "
+        f"has not exported it); pass --table FILE\n")
+
+
 def test_sil_without_action_is_a_usage_error(capsys):
     assert cli.main(["sil"]) == 2
     assert capsys.readouterr().err == (

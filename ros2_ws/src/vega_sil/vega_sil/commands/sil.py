@@ -182,17 +182,9 @@ def write_run_files(plan):
 
 
 def _write_report(plan):
-    """Write the report from the bag; return (passed, table text)."""
-    try:
-        from vega_sil.report import write_report
-    except ModuleNotFoundError:  # interim until the report module lands: the JSON verdict
-        from vega_sil.bagcheck import check_bag
-
-        def write_report(bag_dir, report_dir):
-            result = check_bag(bag_dir)
-            Path(report_dir).mkdir()
-            result.write_json(Path(report_dir) / "check.json")
-            return result
+    """Write the report (:func:`vega_sil.report.write_report`) from the bag; return
+    (passed, console table)."""
+    from vega_sil.report import write_report
 
     result = write_report(plan.layout.bag_dir, plan.layout.report_dir)
     return result.passed, result.table()
@@ -234,8 +226,8 @@ def _run(args):
     t0 = time.monotonic()
     passed, table = _write_report(plan)
     print(table)
-    _say(f"report {plan.layout.report_dir} ({time.monotonic() - t0:.1f} s); "
-         f"{'every requirement passes' if passed else 'REQUIREMENTS NOT MET'}")
+    _say(f"report {plan.layout.report_dir} ({time.monotonic() - t0:.1f} s); verdict "
+         f"{'PASS' if passed else 'FAIL'} (exit status {0 if passed else 1})")
     return 0 if passed else 1
 
 
