@@ -26,6 +26,11 @@ Additions to the contract first agreed (other helpers: read this):
   at start-up, before the barrier. The controller, which reads no scenario (the flight side
   does not import vega_plant), waits for it (up to ``barrier_timeout_s``) before joining the
   barrier. Not recorded.
+* ``/vega/recorded`` (std_msgs/UInt32, data QoS): the recorder's progress (truth messages
+  written, every :data:`vega_bus.schedule.RECORDER_REPORT_FRAMES`); when "recorder" is a
+  participant the plant stays at most :data:`vega_bus.schedule.RECORDER_WINDOW_FRAMES`
+  frames ahead of it (back-pressure: the recorder is the one node no data dependency holds
+  in step). The recorder's publisher is part of its barrier matching (subscriber: plant).
 * ``stall_timeout_s`` parameter (above).
 * ``/clock`` is published RELIABLE with depth :data:`vega_bus.topics.DATA_QUEUE_DEPTH` (not 1),
   so that a lagging recorder loses no tick.

@@ -24,7 +24,7 @@ from __future__ import annotations
 import time
 from typing import Callable, Iterable, Mapping
 
-from .topics import ACTUATOR, CLOCK, INS, READY, TRUTH, TVC_CMD, control_qos
+from .topics import ACTUATOR, CLOCK, INS, READY, RECORDED, TRUTH, TVC_CMD, control_qos
 
 __all__ = ["PARTICIPANTS", "SUBSCRIBERS", "StartBarrier"]
 
@@ -38,6 +38,7 @@ SUBSCRIBERS: Mapping[str, tuple[str, ...]] = {
     TVC_CMD.name: ("tvc_actuator", "recorder"),
     ACTUATOR.name: ("plant", "recorder"),
     CLOCK.name: ("recorder",),
+    RECORDED.name: ("plant",),
 }
 
 
@@ -124,7 +125,8 @@ class StartBarrier:
         Parameters
         ----------
         spin_once
-            Processes pending callbacks for at most the given time [s] (the node's executor).
+            Processes pending messages, waiting at most the given time [s]
+            (:meth:`vega_bus.shell.Shell.spin_once`).
         timeout_s
             Wall-clock limit [s].
         stop

@@ -31,7 +31,17 @@ from dataclasses import asdict, dataclass, fields
 
 from .timing import LoopTiming
 
-__all__ = ["RunInfo"]
+__all__ = ["RunInfo", "RECORDER_REPORT_FRAMES", "RECORDER_WINDOW_FRAMES"]
+
+# Back-pressure from the recorder, the one participant no data dependency holds in step: it
+# reports every RECORDER_REPORT_FRAMES truth messages written (/vega/recorded), and the plant
+# does not publish frame k while k − reported ≥ RECORDER_WINDOW_FRAMES. The window keeps the
+# messages in flight towards the recorder (≈ 4.5 per frame) well inside the publishers'
+# KEEP_LAST history (DATA_QUEUE_DEPTH = 1000 per topic; beyond it a writer drops samples the
+# recorder has not acknowledged) and inside the 512 descriptors of a Fast DDS shared-memory
+# port, whatever the load of the machine.
+RECORDER_REPORT_FRAMES = 20
+RECORDER_WINDOW_FRAMES = 100
 
 
 @dataclass(frozen=True)

@@ -13,9 +13,15 @@ Exit codes of every node (the contract the orchestrator relies on):
 
 Every failure is one line on stderr, ``<node>: <what>``, never a traceback.
 
-The loop uses rclpy's EventsExecutor driven by ``spin_once`` (its ``spin()`` is broken in the
-PyPI wheels; ENVIRONMENT.md); rclpy's own signal handlers are replaced by a flag that the
-wait loops poll, so that a stop never interrupts a bag write halfway.
+No executor: :meth:`Shell.spin_once` waits on one rcl wait set holding the node's
+subscriptions and then *drains* every ready subscription (takes until empty), calling its
+callback per message. Measured on the 5-process SIL: rclpy's EventsExecutor (driven by
+``spin_once``; its ``spin()`` is broken in the PyPI wheels, ENVIRONMENT.md) lost wake-ups when
+a subscriber lagged far behind — messages stayed in the reader queue with no event left to
+deliver them and the recorder stalled — and the SingleThreadedExecutor costs far more per
+message. Draining also batches the work of one wake-up. rclpy's own signal handlers are
+replaced by a flag that the wait loops poll, so that a stop never interrupts a bag write
+halfway.
 """
 
 from __future__ import annotations
@@ -76,7 +82,7 @@ class Shell:
 
     def __init__(self, name: str, argv: list[str]):
         import rclpy
-        from rclpy.experimental import EventsExecutor
+        from rclpy.impl.implementation_singleton import rclpy_implementation
         from rclpy.signals import SignalHandlerOptions
 
         self.name = name
@@ -86,8 +92,9 @@ class Shell:
             signal.signal(sig, self._on_signal)
         rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node(name)
-        self.executor = EventsExecutor()
-        self.executor.add_node(self.node)
+        self._rclpy = rclpy_implementation
+        self._wait_set = None
+        self._waited: tuple = ()
         self.stall_timeout_s = DEFAULT_STALL_TIMEOUT_S
 
     def _on_signal(self, signum, _frame) -> None:
@@ -99,9 +106,30 @@ class Shell:
         return self.signal_name is not None
 
     def spin_once(self, timeout_s: float) -> None:
-        """Run pending callbacks (at most ``timeout_s`` waiting); re-raise a callback's
+        """Wait (at most ``timeout_s``) until a subscription holds messages, then take every
+        message of every ready subscription and call its callback; re-raise a callback's
         failure (:meth:`guard`) and :class:`Stopped` on a signal."""
-        self.executor.spin_once(timeout_sec=timeout_s)
+        subs = tuple(self.node.subscriptions)
+        if subs != self._waited:
+            self._wait_set = self._rclpy.WaitSet(len(subs), 0, 0, 0, 0, 0,
+                                                 self.node.context.handle)
+            self._waited = subs
+        ws = self._wait_set
+        ws.clear_entities()
+        for sub in subs:
+            ws.add_subscription(sub.handle)
+        ws.wait(int(timeout_s * 1e9))
+        ready = ws.get_ready_entities("subscription")
+        if ready:
+            for sub in subs:
+                if sub.handle.pointer in ready:
+                    take, msg_type, raw, callback = (sub.handle.take_message, sub.msg_type,
+                                                     sub.raw, sub.callback)
+                    while self.failure is None:
+                        got = take(msg_type, raw)
+                        if got is None:
+                            break
+                        callback(got[0])
         if self.failure is not None:
             raise self.failure
         if self.signal_name is not None:
@@ -109,7 +137,7 @@ class Shell:
 
     def guard(self, callback: Callable) -> Callable:
         """Wrap a subscription callback: a :class:`NodeExit` it raises is stored and raised
-        by the next :meth:`spin_once` (never through the executor)."""
+        by the next :meth:`spin_once` (never raised through rclpy)."""
         def wrapped(msg):
             if self.failure is not None:
                 return
@@ -120,17 +148,28 @@ class Shell:
         return wrapped
 
     def wait_until(self, done: Callable[[], bool], what: Callable[[], str] | str,
-                   timeout_s: float | None = None, failure: str = "lockstep stall") -> None:
-        """Spin until ``done()``; :class:`NodeExit` (1) ``<failure>: waited … for <what>``
-        after ``timeout_s`` (default: the stall timeout)."""
+                   timeout_s: float | None = None, failure: str = "lockstep stall",
+                   progress: Callable[[], Any] | None = None) -> None:
+        """Spin until ``done()``.
+
+        Raises :class:`NodeExit` (1) ``<failure>: waited … for <what>`` after ``timeout_s``
+        (default: the stall timeout); with ``progress``, the time counts from the last change
+        of ``progress()`` (a long wait that keeps advancing, like the recorder's, is no stall).
+        """
         if done():
             return
         limit = self.stall_timeout_s if timeout_s is None else timeout_s
         deadline = time.monotonic() + limit
+        last = progress() if progress is not None else None
         while True:
             self.spin_once(0.1)
             if done():
                 return
+            if progress is not None:
+                now = progress()
+                if now != last:
+                    last = now
+                    deadline = time.monotonic() + limit
             if time.monotonic() >= deadline:
                 text = what() if callable(what) else what
                 raise NodeExit(EXIT_RUN_FAILURE, f"{failure}: waited {limit:g} s for {text}")
@@ -211,7 +250,7 @@ class Shell:
         import rclpy
 
         try:
-            self.executor.shutdown()
+            self._wait_set = None
             self.node.destroy_node()
         finally:
             rclpy.try_shutdown()

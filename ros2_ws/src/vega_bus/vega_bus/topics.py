@@ -12,7 +12,9 @@ BEST_EFFORT (rclpy's default /clock subscription) and RELIABLE readers match, wi
 topics' depth so that the recorder's RELIABLE reader loses no tick when it lags (a writer's
 KEEP_LAST history overwrites unacknowledged samples).
 
-Two control topics carry the start of a run, not data (they are not recorded):
+Control topics carry the start and the pace of a run, not data (they are not recorded):
+``/vega/recorded`` (std_msgs/UInt32, data QoS: the recorder's progress, the plant's
+back-pressure; :mod:`vega_bus.schedule`), and
 ``/vega/ready`` (std_msgs/String: a participant's node name, once all its publishers have
 matched their subscribers; :mod:`vega_bus.barrier`) and ``/vega/run`` (std_msgs/String: the
 run description as JSON, published by the plant; :class:`vega_bus.schedule.RunInfo`), both
@@ -25,7 +27,7 @@ import importlib
 from typing import NamedTuple
 
 __all__ = ["Topic", "TRUTH", "INS", "TVC_CMD", "ACTUATOR", "CLOCK", "DATA_TOPICS",
-           "ALL_TOPICS", "READY", "RUN", "DATA_QUEUE_DEPTH", "CONTROL_QUEUE_DEPTH",
+           "ALL_TOPICS", "READY", "RUN", "RECORDED", "DATA_QUEUE_DEPTH", "CONTROL_QUEUE_DEPTH",
            "message_class", "data_qos", "clock_qos", "control_qos"]
 
 DATA_QUEUE_DEPTH = 1000  # messages; ≥ 10 s of the fastest topic (100 Hz) in flight
@@ -55,6 +57,9 @@ ALL_TOPICS = DATA_TOPICS + (CLOCK,)
 # Control topics (not recorded): publisher "*" = every participant.
 READY = Topic("/vega/ready", "std_msgs/msg/String", "*", 0.0)
 RUN = Topic("/vega/run", "std_msgs/msg/String", "plant", 0.0)
+# Recorder progress (number of truth messages written), data QoS; the plant never runs more
+# than vega_bus.schedule.RECORDER_WINDOW_FRAMES ahead of it (vega_bus.schedule).
+RECORDED = Topic("/vega/recorded", "std_msgs/msg/UInt32", "recorder", 2.0)
 
 
 def message_class(type_name: str):

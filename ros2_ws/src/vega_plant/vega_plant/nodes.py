@@ -26,7 +26,7 @@ import sys
 import time
 
 from vega_bus import topics
-from vega_bus.schedule import RunInfo
+from vega_bus.schedule import RECORDER_WINDOW_FRAMES, RunInfo
 from vega_bus.shell import (EXIT_BAD_INPUT, EXIT_RUN_FAILURE, NodeExit, SeqCheck, Shell,
                             run_node)
 from vega_bus.timing import ms_to_stamp, stamp_to_ms
@@ -78,7 +78,7 @@ def _expect_stamp(topic: str, got_ms: int, want_ms: int) -> None:
 # ----------------------------------------------------------------------------- plant
 def _plant(shell: Shell) -> None:
     from rosgraph_msgs.msg import Clock
-    from std_msgs.msg import String
+    from std_msgs.msg import String, UInt32
     from vega_msgs.msg import ActuatorState, VehicleState
 
     from .sim_setup import make_plant
@@ -97,13 +97,23 @@ def _plant(shell: Shell) -> None:
     truth_pub = node.create_publisher(VehicleState, topics.TRUTH.name, topics.data_qos())
     clock_pub = node.create_publisher(Clock, topics.CLOCK.name, topics.clock_qos())
     frames = shell.inbox(ActuatorState, topics.ACTUATOR.name, topics.data_qos())
+    recorded = [0]
+    paced = "recorder" in participants   # back-pressure (vega_bus.schedule)
+    if paced:
+        node.create_subscription(UInt32, topics.RECORDED.name,
+                                 lambda m: recorded.__setitem__(0, max(recorded[0], m.data)),
+                                 topics.data_qos())
     shell.barrier(participants, [truth_pub, clock_pub], barrier_timeout)
+    startup_s = _process_age_s()
 
     msg, clock = VehicleState(), Clock()
     msg.header.frame_id = "base_link"
     n, frame_ms = info.n_frames, info.timing.frame_ms
     wall0 = time.monotonic()
     for k in range(n + 1):
+        if paced and k - recorded[0] >= RECORDER_WINDOW_FRAMES:
+            shell.wait_until(lambda: k - recorded[0] < RECORDER_WINDOW_FRAMES,
+                             lambda: f"the recorder (it reported {recorded[0]} of {k} frames)")
         t = plant.output()
         _stamp(msg.header.stamp, t.stamp_ms)
         msg.seq = t.seq
@@ -131,7 +141,21 @@ def _plant(shell: Shell) -> None:
     wall = time.monotonic() - wall0
     span_s = (info.t_end_ms - info.t_start_ms) / 1000.0
     print(f"plant: flew {span_s:g} s in {wall:.2f} s wall ({n / wall:.0f} frames/s, "
-          f"{span_s / wall:.1f}x real time)", flush=True)
+          f"{span_s / wall:.1f}x real time) after a {startup_s:.2f} s start-up", flush=True)
+
+
+def _process_age_s() -> float:
+    """Seconds since this process started (Linux /proc; NaN elsewhere)."""
+    import os
+
+    try:
+        with open("/proc/self/stat") as f:
+            start_ticks = int(f.read().rsplit(")", 1)[1].split()[19])
+        with open("/proc/uptime") as f:
+            uptime = float(f.read().split()[0])
+        return uptime - start_ticks / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return float("nan")
 
 
 def plant_main(argv=None) -> None:

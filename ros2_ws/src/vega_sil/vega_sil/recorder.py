@@ -10,6 +10,8 @@ counts), ``participants``, ``barrier_timeout_s``, ``stall_timeout_s``.
 * log time = the message's sim-time stamp (``header.stamp``; ``clock`` of /clock), read
   from the CDR bytes (:func:`stamp_ns`);
 * checks ``seq`` of every data topic (a gap → exit 1, bag closed and readable);
+* reports its progress on ``/vega/recorded`` (the plant's back-pressure,
+  :data:`vega_bus.schedule.RECORDER_WINDOW_FRAMES`);
 * knows the run's message counts (:meth:`vega_bus.schedule.RunInfo.expected_counts`) and
   exits 0 once it has them all, after closing the bag;
 * SIGINT/SIGTERM: closes the bag (readable, holding what arrived) and exits 0.
@@ -23,6 +25,7 @@ import struct
 import sys
 
 from vega_bus import topics
+from vega_bus.schedule import RECORDER_REPORT_FRAMES
 from vega_bus.shell import EXIT_BAD_INPUT, EXIT_RUN_FAILURE, NodeExit, Shell, run_node
 
 __all__ = ["stamp_ns", "seq_of", "main"]
@@ -59,6 +62,7 @@ def seq_of(data, offset_after_header: int) -> int:
 def _recorder(shell: Shell) -> None:
     from pathlib import Path
 
+    from std_msgs.msg import UInt32
     from vega_plant.nodes import load_run
 
     from . import bagio
@@ -86,24 +90,31 @@ def _recorder(shell: Shell) -> None:
 
     expected = info.expected_counts()
     counts = {name: 0 for name in expected}
+    progress = node.create_publisher(UInt32, topics.RECORDED.name, topics.data_qos())
     try:
         for topic in topics.ALL_TOPICS:
             qos = topics.clock_qos() if topic is topics.CLOCK else topics.data_qos()
+            callback = _writer_callback(writer, topic.name, counts,
+                                        progress if topic is topics.TRUTH else None)
             node.create_subscription(topics.message_class(topic.type_name), topic.name,
-                                     shell.guard(_writer_callback(writer, topic.name, counts)),
-                                     qos, raw=True)
-        shell.barrier(participants, [], barrier_timeout)
+                                     shell.guard(callback), qos, raw=True)
+        shell.barrier(participants, [progress], barrier_timeout)
         shell.wait_until(lambda: counts == expected,
                          lambda: "messages " + ", ".join(
                              f"{k} {counts[k]}/{n}" for k, n in expected.items()
                              if counts[k] < n),
-                         )
+                         progress=lambda: sum(counts.values()))
     finally:
         writer.close()
 
 
-def _writer_callback(writer, name: str, counts: dict):
+def _writer_callback(writer, name: str, counts: dict, progress=None):
+    """Callback writing the raw messages of topic ``name``; with ``progress`` (the truth
+    topic), it reports the count on /vega/recorded every RECORDER_REPORT_FRAMES messages."""
+    from std_msgs.msg import UInt32
+
     offset = _SEQ_AFTER_HEADER.get(name)
+    report = UInt32()
 
     def on_message(data):
         if offset is not None:
@@ -113,6 +124,9 @@ def _writer_callback(writer, name: str, counts: dict):
                                                  f"{counts[name]}, got {seq}")
         writer.write(name, stamp_ns(data), data)
         counts[name] += 1
+        if progress is not None and counts[name] % RECORDER_REPORT_FRAMES == 0:
+            report.data = counts[name]
+            progress.publish(report)
 
     return on_message
 
