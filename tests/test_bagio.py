@@ -148,6 +148,15 @@ def test_missing_and_not_a_bag(tmp_path):
     _one_line_error(tmp_path, "no metadata.yaml")
 
 
+def test_unclosed_bag(sample_bag, tmp_path):
+    import shutil
+
+    path = tmp_path / "unclosed"
+    shutil.copytree(sample_bag, path)
+    (path / "metadata.yaml").unlink()
+    _one_line_error(path, "no metadata.yaml next to its MCAP file: the bag was not closed")
+
+
 def test_truncated_mcap(sample_bag, tmp_path):
     import shutil
 

@@ -18,7 +18,8 @@ sequence        ``seq`` runs 0, 1, 2, … on every data topic (no gap, no repeat
 lockstep        stamps advance by exactly one period per message (10 ms; commands 20 ms;
                 /clock 10 ms), log time = stamp, INS stamp = sample + sensor latency, command
                 stamp = sample + sensor + computing latency (nothing stalled or skipped)
-coverage        truth, INS, actuator and commands cover the scenario span [t_start, t_end]
+coverage        truth, INS, actuator and commands hold the messages of the whole span
+                [t_start, t_end], first and last stamps as :mod:`vega_bus.schedule` says
 compute time    every ``TvcCommand.compute_time_s`` ≤ the computing latency (12 ms budget)
 ==============  ===========================================================================
 
@@ -46,6 +47,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from vega_bus import topics
+from vega_bus.schedule import RunInfo
 
 from . import bagio
 from .closed_loop import SimulationResult
@@ -77,14 +79,22 @@ class HealthResult:
 
 @dataclass(frozen=True)
 class RunContext:
-    """What the bag's metadata says about the run (None/defaults where it says nothing)."""
+    """What the bag's metadata says about the run (None/defaults where it says nothing).
+
+    ``info`` is the run description the plant published (:class:`vega_bus.schedule.RunInfo`:
+    span, timing; the schedule of every topic), rebuilt from the scenario and seed.
+    """
 
     scenario: Any
     timing: Any
-    t_start_ms: int | None
-    t_end_ms: int | None
+    info: RunInfo | None
     beta0_rad: float
     problems: tuple[str, ...] = ()
+
+    @property
+    def t_start_ms(self) -> int | None:
+        """Start of the run [ms] (None: unknown)."""
+        return None if self.info is None else self.info.t_start_ms
 
 
 @dataclass(frozen=True)
@@ -218,10 +228,18 @@ def run_context(bag: bagio.RunBag) -> RunContext:
         from vega_bus.timing import LoopTiming
         from vega_plant.vehicle_data import load_vehicle_data
 
-        return RunContext(None, LoopTiming.from_vehicle(load_vehicle_data()), None, None, 0.0,
+        return RunContext(None, LoopTiming.from_vehicle(load_vehicle_data()), None, 0.0,
                           tuple(problems))
-    return RunContext(scenario, loop_timing(scenario), scenario.t_start_ms, scenario.t_end_ms,
-                      float(scenario.initial_state.beta_rad), tuple(problems))
+    timing = loop_timing(scenario)
+    seed = bag.metadata.get(bagio.META_SEED, "")
+    info = None
+    try:
+        info = RunInfo(scenario.name, int(seed) if seed.isdigit() else scenario.seed,
+                       scenario.t_start_ms, scenario.t_end_ms, timing).check()
+    except ValueError as exc:
+        problems.append(" ".join(str(exc).split()))
+    return RunContext(scenario, timing, info, float(scenario.initial_state.beta_rad),
+                      tuple(problems))
 
 
 # ----------------------------------------------------------------------------- the run
@@ -409,37 +427,41 @@ def _check_lockstep(bag: bagio.RunBag, timing) -> HealthResult:
 
 
 def _check_coverage(bag: bagio.RunBag, ctx: RunContext) -> HealthResult:
-    if ctx.t_start_ms is None:
+    info = ctx.info
+    if info is None:
         return HealthResult("coverage", "run complete", "unknown", "scenario span", False,
                             "no scenario in the metadata: span unknown")
-    t0, t1, timing = ctx.t_start_ms, ctx.t_end_ms, ctx.timing
-    # what the loop produces over [t0, t1]: truth at t0 … t1, INS samples t0 … t1 − frame,
-    # actuator frames ending t0 + frame … t1, commands from samples t0 … (last on period)
-    last_sample = t1 - timing.frame_ms
-    last_cmd_sample = last_sample - (last_sample - t0) % timing.controller_period_ms
-    lat = timing.sensor_latency_ms
+    t = info.timing
+    samples = info.command_samples()
+    cmd_lag = t.sensor_latency_ms + t.computing_latency_ms
+    last_frame = info.frame_start(info.n_frames - 1)
+    # first and last stamp of each topic in a complete run (vega_bus.schedule)
     expect = {
-        topics.TRUTH.name: (t0, t1),
-        topics.INS.name: (t0 + lat, last_sample + lat),
-        topics.ACTUATOR.name: (t0 + timing.frame_ms, t1),
-        topics.TVC_CMD.name: (t0 + lat + timing.computing_latency_ms,
-                              last_cmd_sample + lat + timing.computing_latency_ms),
+        topics.TRUTH.name: (info.t_start_ms, info.t_end_ms),
+        topics.INS.name: (info.t_start_ms + t.sensor_latency_ms,
+                          last_frame + t.sensor_latency_ms),
+        topics.ACTUATOR.name: (info.t_start_ms + t.frame_ms, info.t_end_ms),
+        topics.TVC_CMD.name: (samples[0] + cmd_lag, samples[-1] + cmd_lag) if len(samples)
+        else None,
     }
+    counts = info.expected_counts()
     problems = []
-    for name, (first, last) in expect.items():
+    for name, span in expect.items():
         cols = bag.topics.get(name)
-        if cols is None or len(cols) == 0:
-            problems.append(f"{name}: no messages")
+        n = 0 if cols is None else len(cols)
+        if n != counts[name]:
+            problems.append(f"{name}: {n} messages, a complete run has {counts[name]}")
+        if n == 0 or span is None:
             continue
         got0, got1 = int(cols["stamp_ns"][0]), int(cols["stamp_ns"][-1])
-        if got0 != first * _NS_PER_MS or got1 != last * _NS_PER_MS:
+        if (got0, got1) != (span[0] * _NS_PER_MS, span[1] * _NS_PER_MS):
             problems.append(f"{name} spans {_ms(got0)} … {_ms(got1)}, expected "
-                            f"{first / 1e3:.3f} s … {last / 1e3:.3f} s")
+                            f"{span[0] / 1e3:.3f} s … {span[1] / 1e3:.3f} s")
     truth = bag[topics.TRUTH.name]["stamp_ns"]
     value = f"{truth[0] / 1e9:.3f} … {truth[-1] / 1e9:.3f} s"
     return HealthResult("coverage", "run complete", value,
-                        f"{t0 / 1e3:.3f} … {t1 / 1e3:.3f} s", not problems,
-                        "; ".join(problems))
+                        f"{info.t_start_ms / 1e3:.3f} … {info.t_end_ms / 1e3:.3f} s",
+                        not problems, "; ".join(problems))
 
 
 def _check_compute_time(ct: np.ndarray, cmd_t_ms: np.ndarray, timing) -> HealthResult:

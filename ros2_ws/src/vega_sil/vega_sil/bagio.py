@@ -546,6 +546,9 @@ def _open_reader(path: Path):
         raise BagError(f"bag {path}: not a rosbag2 directory (expected a directory with "
                        f"metadata.yaml)")
     if not (path / "metadata.yaml").is_file():
+        if any(path.glob("*.mcap")):
+            raise BagError(f"bag {path}: no metadata.yaml next to its MCAP file: the bag was "
+                           f"not closed (its recorder was killed?)")
         raise BagError(f"bag {path}: not a rosbag2 directory (no metadata.yaml)")
     reader = Reader(path)
     try:

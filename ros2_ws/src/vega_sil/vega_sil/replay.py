@@ -257,18 +257,14 @@ def first_difference(recorded: list[bytes], replayed: list[bytes]) -> tuple[int,
 
 def _run_info(bag: bagio.RunBag):
     """The run description the plant published for this bag's run (from its metadata)."""
-    from vega_bus.schedule import RunInfo
-
     from .bagcheck import run_context
 
     ctx = run_context(bag)
-    if ctx.scenario is None:
+    if ctx.info is None:
         raise bagio.BagError(f"bag {bag.path}: no usable scenario in the metadata "
                              f"({'; '.join(ctx.problems) or 'missing'}); cannot replay the "
                              f"controller")
-    seed = bag.metadata.get(bagio.META_SEED, "")
-    return RunInfo(ctx.scenario.name, int(seed) if seed.isdigit() else ctx.scenario.seed,
-                   ctx.t_start_ms, ctx.t_end_ms, ctx.timing).check()
+    return ctx.info
 
 
 def _table_path(bag: bagio.RunBag, table: str | Path | None) -> tuple[Path, list[str]]:
