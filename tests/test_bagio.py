@@ -205,3 +205,36 @@ def test_iter_raw_messages_gives_the_recorded_bytes(sample_bag):
     decoded = bagio.vega_typestore().deserialize_cdr(data, topics.TVC_CMD.type_name)
     assert math.isclose(decoded.compute_time_s, 1.25e-4)
     assert np.isfinite(decoded.deflection_cmd_rad)
+
+
+def test_fast_reader_equals_rosbags_deserialiser(tmp_path):
+    """The numpy column reader gives what rosbags' deserialiser gives (values, dtypes, shapes),
+    and messages of differing layouts (frame_id lengths) fall back to the deserialiser."""
+    from fixture_bags import short_run, write_bag
+
+    run = short_run(tmp_path, span_s=(30.0, 30.5))
+
+    def vary_frame_ids(messages):
+        for k, i in enumerate(i for i, m in enumerate(messages) if m[0] == topics.INS.name):
+            messages[i][2].header.frame_id = "b" * (k % 3)
+
+    store = bagio.vega_typestore()
+    for name, mutate in (("same", None), ("varied", vary_frame_ids)):
+        path = write_bag(tmp_path / name, run, mutate)
+        bag = bagio.read_run_bag(path)
+        raw = {}
+        for topic, _, data in bagio.iter_raw_messages(path):
+            raw.setdefault(topic, []).append(bytes(data))
+        for topic, cols in bag.topics.items():
+            msgs = [store.deserialize_cdr(d, cols.type_name) for d in raw[topic]]
+            want, want_counts = bagio._columns_of(store, cols.type_name, msgs)
+            assert want.keys() == cols.columns.keys(), topic
+            for key, value in want.items():
+                got = cols.columns[key]
+                assert got.dtype == value.dtype and got.shape == value.shape, (topic, key)
+                assert np.array_equal(got, value), (topic, key)
+            assert {k: v.tolist() for k, v in want_counts.items()} == \
+                {k: v.tolist() for k, v in cols.counts.items()}
+        if name == "varied":
+            with pytest.raises(bagio._NotFlat):
+                bagio._fast_columns(store, topics.INS.type_name, raw[topics.INS.name])
