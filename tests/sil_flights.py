@@ -5,7 +5,6 @@ inspection, and the canonical form of bag payloads for byte comparisons.
 """
 
 import dataclasses
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -17,8 +16,8 @@ from vega_plant.scenario import scenario_path
 from vega_sil import bagio, orchestrate, rosenv
 
 __all__ = ["write_short_scenario", "flight_env", "vega_sil_run", "start_vega_sil_run",
-           "run_layout_in", "children_of", "alive", "normalised", "by_topic",
-           "comparable_payloads"]
+           "run_layout_in", "children_of", "alive", "wait_for_sim_time", "normalised",
+           "by_topic", "comparable_payloads"]
 
 
 def write_short_scenario(directory, base, name, t_start_s, t_end_s):
@@ -74,12 +73,43 @@ def children_of(pid):
 
 
 def alive(pid):
-    """True if process ``pid`` exists (a zombie counts until reaped)."""
+    """True if process ``pid`` runs (a zombie, dead but not yet reaped, does not count)."""
     try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
         return False
-    return True
+    return state not in ("Z", "X")
+
+
+def wait_for_sim_time(t_s, timeout_s=120.0, still_running=lambda: True):
+    """Block until the plant's ``/clock`` reaches ``t_s`` (a subscriber in this process, own
+    rclpy context); False if ``timeout_s`` passes or ``still_running()`` turns false first."""
+    import time
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rosgraph_msgs.msg import Clock
+
+    context = rclpy.Context()
+    rclpy.init(context=context, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    latest = [-1.0]
+    try:
+        node = rclpy.create_node("sil_test_clock_watch", context=context)
+        node.create_subscription(
+            Clock, topics.CLOCK.name,
+            lambda msg: latest.__setitem__(0, msg.clock.sec + 1e-9 * msg.clock.nanosec),
+            topics.clock_qos())
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        deadline = time.monotonic() + timeout_s
+        while latest[0] < t_s and time.monotonic() < deadline and still_running():
+            executor.spin_once(timeout_sec=0.05)
+        executor.remove_node(node)
+        node.destroy_node()
+        executor.shutdown()
+    finally:
+        rclpy.try_shutdown(context=context)
+    return latest[0] >= t_s
 
 
 _TYPES = {t.name: t.type_name for t in topics.ALL_TOPICS}

@@ -18,6 +18,7 @@ import pytest
 import yaml
 
 from fixture_tables import write_pd_table
+from sil_flights import alive
 from vega_sil import cli, orchestrate
 from vega_sil.commands import sil
 
@@ -210,14 +211,6 @@ _STUBBORN = """
 """
 
 
-def _alive(pid):
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    return True
-
-
 def _supervisor(tmp_path, nodes, **kwargs):
     layout = orchestrate.RunLayout(tmp_path / "run")
     layout.run_dir.mkdir()
@@ -249,7 +242,7 @@ def test_supervisor_failure_stops_the_others_and_names_the_node(tmp_path):
     assert outcome.message == ("node 'broken' failed during the flight: exit status 2: "
                                "broken: error: table.npz: not a controller table")
     assert outcome.returncodes == {"sleeper": 0, "broken": 2}
-    assert not any(_alive(p.popen.pid) for p in sup.processes)
+    assert not any(alive(p.popen.pid) for p in sup.processes)
 
 
 def test_supervisor_kills_a_node_that_ignores_sigterm(tmp_path, monkeypatch):
@@ -326,5 +319,36 @@ def test_supervisor_interrupt_stops_everything(tmp_path):
         out, _ = proc.communicate(timeout=30)
         assert out.split() == ["interrupted", "0", "0"]
         assert proc.returncode == 0
-        assert not any(_alive(pid) for pid in node_pids)
+        assert not any(alive(pid) for pid in node_pids)
         shutil.rmtree(tmp_path / "run")
+
+
+def test_killed_orchestrator_leaves_no_nodes(tmp_path):
+    """Even SIGKILL on the orchestrator leaves no node behind: the kernel sends each node
+    SIGTERM when its parent dies (PR_SET_PDEATHSIG)."""
+    sleeper = tmp_path / "sleeper.py"
+    sleeper.write_text(textwrap.dedent(_SLEEPER))
+    driver = tmp_path / "driver.py"
+    driver.write_text(textwrap.dedent(f"""
+        import os, sys
+        from pathlib import Path
+        from vega_sil import orchestrate
+
+        layout = orchestrate.RunLayout(Path({str(tmp_path / 'run')!r}))
+        layout.run_dir.mkdir()
+        nodes = [(orchestrate.NodeSpec("s", f"s{{i}}"), [sys.executable, {str(sleeper)!r}])
+                 for i in range(2)]
+        sup = orchestrate.Supervisor(nodes, layout, os.environ, watch_barrier=False)
+        sup.progress = lambda line: print(
+            " ".join(str(p.popen.pid) for p in sup.processes), flush=True)
+        sup.run()
+    """))
+    proc = subprocess.Popen([sys.executable, str(driver)], stdout=subprocess.PIPE, text=True)
+    node_pids = [int(p) for p in proc.stdout.readline().split()]
+    assert len(node_pids) == 2
+    proc.kill()
+    proc.wait()
+    deadline = time.monotonic() + 30.0
+    while any(alive(pid) for pid in node_pids) and time.monotonic() < deadline:
+        time.sleep(0.01)  # the orphans are reaped by init, not by us
+    assert not any(alive(pid) for pid in node_pids)

@@ -21,7 +21,7 @@ import pytest
 
 from fixture_tables import write_pd_table
 from sil_flights import (alive, children_of, flight_env, run_layout_in, start_vega_sil_run,
-                         vega_sil_run, write_short_scenario)
+                         vega_sil_run, wait_for_sim_time, write_short_scenario)
 from vega_bus import topics
 from vega_sil import bagio, orchestrate
 from vega_sil.closed_loop import run_scenario
@@ -131,8 +131,8 @@ def test_node_death_or_interrupt_stops_everything(tmp_path, short_scenario, pd_t
                                                   victim, how):
     """A node killed mid-flight (SIGKILL): the run stops the others, exits 1 naming the node
     and the signal, keeps a readable bag and leaves no process behind. Ctrl-C (SIGINT) on
-    ``vega sil run``: the same clean stop, exit 130. (Paced to real time, so that the flight
-    is still under way when the signal comes.)"""
+    ``vega sil run``: the same clean stop, exit 130. The signal comes when /clock has reached
+    12 s of the 10–14 s flight (paced to real time, so that it is still under way)."""
     proc = start_vega_sil_run(["--scenario", short_scenario, "--table", pd_table,
                                "--out", tmp_path, "--realtime"])
     try:
@@ -143,6 +143,7 @@ def test_node_death_or_interrupt_stops_everything(tmp_path, short_scenario, pd_t
                 break
         nodes = children_of(proc.pid)
         assert len(nodes) == len(orchestrate.PARTICIPANTS), "".join(stderr)
+        assert wait_for_sim_time(12.0, still_running=lambda: proc.poll() is None)
         if victim is None:
             proc.send_signal(how)
         else:

@@ -516,6 +516,10 @@ class Supervisor:
                 return RunOutcome("bad_input" if failed.returncode == 2 else "failed", message)
             if watcher is None or not missing:
                 return None
+            if any(p.returncode == 0 for p in self.processes):
+                # a node ends normally only after the flight: the barrier was complete even if
+                # the announcements left with their publishers before this watcher heard them
+                return None
             if time.monotonic() > deadline:
                 return RunOutcome(
                     "failed", f"start barrier timed out after {self.barrier_timeout_s:g} s: "

@@ -16,7 +16,6 @@ is shown); 130 interrupted (Ctrl-C) — every node is stopped, the bag closed.
 ready to paste into separate terminals, without starting anything.
 """
 
-import argparse
 import os
 import sys
 import time
