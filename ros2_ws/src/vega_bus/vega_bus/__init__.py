@@ -27,10 +27,11 @@ Additions to the contract first agreed (other helpers: read this):
   does not import vega_plant), waits for it (up to ``barrier_timeout_s``) before joining the
   barrier. Not recorded.
 * ``/vega/recorded`` (std_msgs/UInt32, data QoS): the recorder's progress (truth messages
-  written, every :data:`vega_bus.schedule.RECORDER_REPORT_FRAMES`); when "recorder" is a
-  participant the plant stays at most :data:`vega_bus.schedule.RECORDER_WINDOW_FRAMES`
-  frames ahead of it (back-pressure: the recorder is the one node no data dependency holds
-  in step). The recorder's publisher is part of its barrier matching (subscriber: plant).
+  written, every :data:`vega_bus.schedule.RECORDER_REPORT_FRAMES`, and a final report);
+  when "recorder" is a participant the plant stays at most
+  :data:`vega_bus.schedule.RECORDER_WINDOW_FRAMES` frames ahead of it (back-pressure: the
+  recorder is the one node no data dependency holds in step), and every node ends its run on
+  the final report (below). Subscribed by plant, ins_sensor, tvc_controller, tvc_actuator.
 * ``stall_timeout_s`` parameter (above).
 * ``/clock`` is published RELIABLE with depth :data:`vega_bus.topics.DATA_QUEUE_DEPTH` (not 1),
   so that a lagging recorder loses no tick.
@@ -45,7 +46,14 @@ Additions to the contract first agreed (other helpers: read this):
   installed, ≈ 0.5 s) kills the process with the default action (exit −15/143).
 * Run end: plant after truth and /clock at t_end; INS after its sample t_end − frame;
   controller after the measurement of sample t_end − frame; actuator after its frame
-  (t_end − frame, t_end]; recorder after every expected message
-  (:meth:`RunInfo.expected_counts`). Each publisher waits (up to stall_timeout_s) for its subscribers'
-  acknowledgements before exiting.
+  (t_end − frame, t_end]. Then, with a recorder among the participants, each of them waits
+  for the recorder's final report on ``/vega/recorded`` (= the run's truth count, n + 1) and
+  exits 0; the recorder, once it has every expected message
+  (:meth:`RunInfo.expected_counts`), closes the bag, publishes that final report and waits
+  (≤ stall_timeout_s) until the others have left. Without a recorder, each publisher waits
+  (≤ stall_timeout_s) for its subscribers' DDS acknowledgements instead (≈ 2.3 s: Fast DDS
+  acknowledges on its heartbeat).
+* Start barrier: a participant is ready when its publishers have matched their expected
+  subscribers *and* its subscriptions their expected publishers (a reader that has not yet
+  matched a writer drops its data until the next heartbeat, 3 s).
 """

@@ -7,8 +7,12 @@ Protocol (topic ``/vega/ready``, std_msgs/String, RELIABLE, TRANSIENT_LOCAL; see
    :meth:`StartBarrier.poll`. Once every one of its publishers has matched the subscribers
    expected from the participants list (:data:`SUBSCRIBERS`: which participant subscribes to
    which topic; the expected node names must appear among the topic's subscriptions and the
-   publisher's matched count must reach their number), it publishes its own node name on
-   ``/vega/ready``, once.
+   publisher's matched count must reach their number) *and* every one of its subscriptions
+   has matched the expected publisher (:data:`PUBLISHERS`), it publishes its own node name on
+   ``/vega/ready``, once. Both directions matter: a writer that has matched a reader sends to
+   it, but a reader that has not yet matched that writer drops the data, which the reliable
+   protocol repairs only at the writer's next heartbeat (Fast DDS: 3 s) — measured as a 3 s
+   hole at the start of every run before the subscriptions were checked too.
 2. Every participant also reads ``/vega/ready``; the run may begin when it holds the names of
    all participants (:attr:`StartBarrier.complete`). The plant, time master, publishes the
    first frame only then; the others start then too (the actuator, which needs no input for its
@@ -24,9 +28,9 @@ from __future__ import annotations
 import time
 from typing import Callable, Iterable, Mapping
 
-from .topics import ACTUATOR, CLOCK, INS, READY, RECORDED, TRUTH, TVC_CMD, control_qos
+from .topics import ACTUATOR, CLOCK, INS, READY, RECORDED, RUN, TRUTH, TVC_CMD, control_qos
 
-__all__ = ["PARTICIPANTS", "SUBSCRIBERS", "StartBarrier"]
+__all__ = ["PARTICIPANTS", "SUBSCRIBERS", "PUBLISHERS", "StartBarrier"]
 
 # Node names of a full SIL run (= executable names), the default ``participants`` parameter.
 PARTICIPANTS = ("plant", "ins_sensor", "tvc_controller", "tvc_actuator", "recorder")
@@ -38,7 +42,13 @@ SUBSCRIBERS: Mapping[str, tuple[str, ...]] = {
     TVC_CMD.name: ("tvc_actuator", "recorder"),
     ACTUATOR.name: ("plant", "recorder"),
     CLOCK.name: ("recorder",),
-    RECORDED.name: ("plant",),
+    RECORDED.name: ("plant", "ins_sensor", "tvc_controller", "tvc_actuator"),
+}
+
+# The participant publishing each topic a participant subscribes to (control topics included).
+PUBLISHERS: Mapping[str, str] = {
+    **{t.name: t.publisher for t in (TRUTH, INS, TVC_CMD, ACTUATOR, CLOCK, RECORDED)},
+    RUN.name: RUN.publisher,
 }
 
 
@@ -53,13 +63,20 @@ class StartBarrier:
         Node names of every participant of the run.
     publishers
         The participant's publishers whose subscribers must have matched.
+    subscriptions
+        The participant's subscriptions whose publishers must have matched.
     subscribers
         Topic name → participants subscribing to it (default :data:`SUBSCRIBERS`); topics
         absent from it need no subscriber.
+    publishers_of
+        Topic name → participant publishing it (default :data:`PUBLISHERS`); topics absent
+        from it need no publisher.
     """
 
     def __init__(self, node, participants: Iterable[str], publishers: Iterable = (),
-                 subscribers: Mapping[str, Iterable[str]] = SUBSCRIBERS):
+                 subscriptions: Iterable = (),
+                 subscribers: Mapping[str, Iterable[str]] = SUBSCRIBERS,
+                 publishers_of: Mapping[str, str] = PUBLISHERS):
         from std_msgs.msg import String
 
         self._node = node
@@ -72,6 +89,12 @@ class StartBarrier:
             names = tuple(n for n in subscribers.get(topic, ()) if n in chosen)
             if names:
                 self._expect.append((pub, topic, names))
+        self._expect_pub = []
+        for sub in subscriptions:
+            topic = node.resolve_topic_name(sub.topic_name)
+            name = publishers_of.get(topic)
+            if name in chosen:
+                self._expect_pub.append((sub, topic, name))
         self.ready: set[str] = set()
         self.announced = False
         self._String = String
@@ -88,6 +111,10 @@ class StartBarrier:
                 return False
             present = {i.node_name for i in self._node.get_subscriptions_info_by_topic(topic)}
             if not present.issuperset(names):
+                return False
+        for sub, topic, name in self._expect_pub:
+            if sub.get_publisher_count() < 1 or name not in {
+                    i.node_name for i in self._node.get_publishers_info_by_topic(topic)}:
                 return False
         return True
 
@@ -111,11 +138,15 @@ class StartBarrier:
         return missing
 
     def unmatched(self) -> list[str]:
-        """``topic→node`` pairs this participant's publishers have not matched yet."""
+        """``topic->node`` (subscriber) and ``node->topic`` (publisher) links this participant
+        has not matched yet."""
         out = []
         for _pub, topic, names in self._expect:
             present = {i.node_name for i in self._node.get_subscriptions_info_by_topic(topic)}
             out += [f"{topic}->{n}" for n in names if n not in present]
+        for sub, topic, name in self._expect_pub:
+            if sub.get_publisher_count() < 1:
+                out.append(f"{name}->{topic}")
         return out
 
     def wait(self, spin_once: Callable[[float], None], timeout_s: float,
@@ -149,5 +180,5 @@ class StartBarrier:
         text = "start barrier timed out; not ready: " + (", ".join(self.missing()) or "none")
         unmatched = self.unmatched() if not self.announced else []
         if unmatched:
-            text += f" (this node has no subscriber {', '.join(unmatched)})"
+            text += f" (this node has not matched {', '.join(unmatched)})"
         return text

@@ -31,7 +31,7 @@ import time
 from typing import Any, Callable
 
 __all__ = ["EXIT_OK", "EXIT_RUN_FAILURE", "EXIT_BAD_INPUT", "NodeExit", "Stopped", "Shell",
-           "run_node", "SeqCheck"]
+           "RecorderProgress", "run_node", "SeqCheck"]
 
 EXIT_OK = 0
 EXIT_RUN_FAILURE = 1
@@ -222,14 +222,34 @@ class Shell:
         return participants, timeout
 
     def barrier(self, participants, publishers, timeout_s: float):
-        """Run the start barrier (:class:`vega_bus.barrier.StartBarrier`); :class:`NodeExit`
-        (1) naming the missing participants on timeout."""
+        """Run the start barrier (:class:`vega_bus.barrier.StartBarrier`) for ``publishers``
+        and every subscription of the node; :class:`NodeExit` (1) naming the missing
+        participants on timeout."""
         from .barrier import StartBarrier
 
-        barrier = StartBarrier(self.node, participants, publishers)
+        barrier = StartBarrier(self.node, participants, publishers,
+                               [s for s in self.node.subscriptions])
         if not barrier.wait(self.spin_once, timeout_s):
             raise NodeExit(EXIT_RUN_FAILURE, barrier.describe_missing())
         return barrier
+
+    def recorder_progress(self, participants) -> "RecorderProgress":
+        """Subscribe to the recorder's progress (if "recorder" is a participant)."""
+        return RecorderProgress(self, participants)
+
+    def finish(self, publishers, progress: "RecorderProgress", final: int) -> None:
+        """End of the run, after this node's last message: with a recorder, wait until it
+        reports ``final`` truth messages written (then every message of the run has reached
+        it, and every node has had its last input, since each node's last output follows its
+        last input); without one, :meth:`flush`. Waiting for the report instead of the DDS
+        acknowledgements saves ≈ 2.3 s per run: Fast DDS acknowledges on its heartbeat."""
+        if progress.active:
+            self.wait_until(lambda: progress.count >= final,
+                            lambda: f"the recorder's final report ({progress.count}/{final} "
+                                    f"truth messages written)",
+                            progress=lambda: progress.count)
+        else:
+            self.flush(publishers)
 
     def flush(self, publishers, timeout_s: float | None = None) -> None:
         """Wait until every subscriber acknowledged what ``publishers`` sent, so that exiting
@@ -253,6 +273,26 @@ class Shell:
             self.node.destroy_node()
         finally:
             rclpy.try_shutdown()
+
+
+class RecorderProgress:
+    """The latest count the recorder reported on ``/vega/recorded`` (:mod:`vega_bus.schedule`).
+
+    ``active`` is False (and ``count`` stays 0) when "recorder" is not a participant.
+    """
+
+    def __init__(self, shell: Shell, participants):
+        from std_msgs.msg import UInt32
+
+        from .topics import RECORDED, data_qos
+
+        self.active = "recorder" in participants
+        self.count = 0
+        if self.active:
+            shell.node.create_subscription(UInt32, RECORDED.name, self._on_report, data_qos())
+
+    def _on_report(self, msg) -> None:
+        self.count = max(self.count, int(msg.data))
 
 
 def _one_line(exc: BaseException) -> str:

@@ -114,6 +114,7 @@ def _controller(shell: Shell) -> None:
 
     pub = node.create_publisher(TvcCommand, topics.TVC_CMD.name, topics.data_qos())
     queue = shell.inbox(InsMeasurement, topics.INS.name, topics.data_qos())
+    recorded = shell.recorder_progress(participants)
     shell.barrier(participants, [pub], barrier_timeout)
 
     out = TvcCommand()
@@ -134,7 +135,7 @@ def _controller(shell: Shell) -> None:
         out.status = cmd.status
         out.compute_time_s = elapsed
         pub.publish(out)
-    shell.flush([pub])
+    shell.finish([pub], recorded, info.n_frames + 1)
 
 
 def main(argv=None) -> None:

@@ -78,7 +78,7 @@ def _expect_stamp(topic: str, got_ms: int, want_ms: int) -> None:
 # ----------------------------------------------------------------------------- plant
 def _plant(shell: Shell) -> None:
     from rosgraph_msgs.msg import Clock
-    from std_msgs.msg import String, UInt32
+    from std_msgs.msg import String
     from vega_msgs.msg import ActuatorState, VehicleState
 
     from .sim_setup import make_plant
@@ -97,12 +97,7 @@ def _plant(shell: Shell) -> None:
     truth_pub = node.create_publisher(VehicleState, topics.TRUTH.name, topics.data_qos())
     clock_pub = node.create_publisher(Clock, topics.CLOCK.name, topics.clock_qos())
     frames = shell.inbox(ActuatorState, topics.ACTUATOR.name, topics.data_qos())
-    recorded = [0]
-    paced = "recorder" in participants   # back-pressure (vega_bus.schedule)
-    if paced:
-        node.create_subscription(UInt32, topics.RECORDED.name,
-                                 lambda m: recorded.__setitem__(0, max(recorded[0], m.data)),
-                                 topics.data_qos())
+    recorded = shell.recorder_progress(participants)   # back-pressure (vega_bus.schedule)
     shell.barrier(participants, [truth_pub, clock_pub], barrier_timeout)
     startup_s = _process_age_s()
 
@@ -111,9 +106,10 @@ def _plant(shell: Shell) -> None:
     n, frame_ms = info.n_frames, info.timing.frame_ms
     wall0 = time.monotonic()
     for k in range(n + 1):
-        if paced and k - recorded[0] >= RECORDER_WINDOW_FRAMES:
-            shell.wait_until(lambda: k - recorded[0] < RECORDER_WINDOW_FRAMES,
-                             lambda: f"the recorder (it reported {recorded[0]} of {k} frames)")
+        if recorded.active and k - recorded.count >= RECORDER_WINDOW_FRAMES:
+            shell.wait_until(lambda: k - recorded.count < RECORDER_WINDOW_FRAMES,
+                             lambda: f"the recorder (it reported {recorded.count} of {k} "
+                                     f"frames)")
         t = plant.output()
         _stamp(msg.header.stamp, t.stamp_ms)
         msg.seq = t.seq
@@ -137,7 +133,7 @@ def _plant(shell: Shell) -> None:
             ahead = wall0 + (k + 1) * frame_ms / 1000.0 - time.monotonic()
             if ahead > 0:
                 time.sleep(ahead)
-    shell.flush([truth_pub, clock_pub])
+    shell.finish([truth_pub, clock_pub], recorded, n + 1)
     wall = time.monotonic() - wall0
     span_s = (info.t_end_ms - info.t_start_ms) / 1000.0
     print(f"plant: flew {span_s:g} s in {wall:.2f} s wall ({n / wall:.0f} frames/s, "
@@ -178,6 +174,7 @@ def _ins(shell: Shell) -> None:
     context, deviations = default_context(), scenario.deviations
     pub = node.create_publisher(InsMeasurement, topics.INS.name, topics.data_qos())
     truths = shell.inbox(VehicleState, topics.TRUTH.name, topics.data_qos())
+    recorded = shell.recorder_progress(participants)
     shell.barrier(participants, [pub], barrier_timeout)
 
     out = InsMeasurement()
@@ -199,7 +196,7 @@ def _ins(shell: Shell) -> None:
         (out.pitch_rad, out.pitch_rate_radps, out.drift_m, out.drift_rate_mps,
          out.velocity_mps, out.valid) = s[3:9]
         pub.publish(out)
-    shell.flush([pub])
+    shell.finish([pub], recorded, info.n_frames + 1)
 
 
 def ins_main(argv=None) -> None:
@@ -234,6 +231,7 @@ def _actuator(shell: Shell) -> None:
 
     node.create_subscription(TvcCommand, topics.TVC_CMD.name, shell.guard(on_command),
                              topics.data_qos())
+    recorded = shell.recorder_progress(participants)
     shell.barrier(participants, [pub], barrier_timeout)
 
     out = ActuatorState()
@@ -251,7 +249,7 @@ def _actuator(shell: Shell) -> None:
         out.accel_samples_radps2 = f.accel_samples_radps2
         out.sample_period_s = f.sample_period_s
         pub.publish(out)
-    shell.flush([pub])
+    shell.finish([pub], recorded, info.n_frames + 1)
 
 
 class _Command:

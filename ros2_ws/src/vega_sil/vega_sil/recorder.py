@@ -12,8 +12,9 @@ counts), ``participants``, ``barrier_timeout_s``, ``stall_timeout_s``.
 * checks ``seq`` of every data topic (a gap → exit 1, bag closed and readable);
 * reports its progress on ``/vega/recorded`` (the plant's back-pressure,
   :data:`vega_bus.schedule.RECORDER_WINDOW_FRAMES`);
-* knows the run's message counts (:meth:`vega_bus.schedule.RunInfo.expected_counts`) and
-  exits 0 once it has them all, after closing the bag;
+* knows the run's message counts (:meth:`vega_bus.schedule.RunInfo.expected_counts`); once it
+  has them all it closes the bag, publishes its final report (the other nodes exit on it,
+  :meth:`vega_bus.shell.Shell.finish`), waits until they have left and exits 0;
 * SIGINT/SIGTERM: closes the bag (readable, holding what arrived) and exits 0.
 
 The bag is opened before the start barrier (a path that exists → exit 2 before anything flies).
@@ -23,6 +24,7 @@ from __future__ import annotations
 
 import struct
 import sys
+import time
 
 from vega_bus import topics
 from vega_bus.schedule import RECORDER_REPORT_FRAMES
@@ -106,6 +108,12 @@ def _recorder(shell: Shell) -> None:
                          progress=lambda: sum(counts.values()))
     finally:
         writer.close()
+    # the final report ends the run for everyone; wait until they have left (they exit on it)
+    final = UInt32(data=counts[topics.TRUTH.name])
+    progress.publish(final)
+    deadline = time.monotonic() + shell.stall_timeout_s
+    while progress.get_subscription_count() > 0 and time.monotonic() < deadline:
+        shell.spin_once(0.05)
 
 
 def _writer_callback(writer, name: str, counts: dict, progress=None):
