@@ -55,5 +55,5 @@ Additions to the contract first agreed (other helpers: read this):
   acknowledges on its heartbeat).
 * Start barrier: a participant is ready when its publishers have matched their expected
   subscribers *and* its subscriptions their expected publishers (a reader that has not yet
-  matched a writer drops its data until the next heartbeat, 3 s).
+  matched a writer ignores its data until the writer's next heartbeat, 3 s).
 """

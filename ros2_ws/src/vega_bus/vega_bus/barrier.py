@@ -9,10 +9,11 @@ Protocol (topic ``/vega/ready``, std_msgs/String, RELIABLE, TRANSIENT_LOCAL; see
    which topic; the expected node names must appear among the topic's subscriptions and the
    publisher's matched count must reach their number) *and* every one of its subscriptions
    has matched the expected publisher (:data:`PUBLISHERS`), it publishes its own node name on
-   ``/vega/ready``, once. Both directions matter: a writer that has matched a reader sends to
-   it, but a reader that has not yet matched that writer drops the data, which the reliable
-   protocol repairs only at the writer's next heartbeat (Fast DDS: 3 s) — measured as a 3 s
-   hole at the start of every run before the subscriptions were checked too.
+   ``/vega/ready``, once. Both directions are checked because discovery is not symmetric in
+   time: a writer that has matched a reader sends to it, but a reader that has not yet matched
+   that writer ignores the data, which the reliable protocol repairs only at the writer's next
+   heartbeat (Fast DDS: every 3 s). (The 3 s seen at the end of early runs was something
+   else: waiting for DDS acknowledgements, see :meth:`vega_bus.shell.Shell.finish`.)
 2. Every participant also reads ``/vega/ready``; the run may begin when it holds the names of
    all participants (:attr:`StartBarrier.complete`). The plant, time master, publishes the
    first frame only then; the others start then too (the actuator, which needs no input for its
