@@ -12,7 +12,8 @@
   (:class:`ReadyWatcher`), waits for the flight to end, and stops everything on a failure or
   an interrupt: SIGTERM to every process group still running, SIGKILL after
   :data:`TERM_GRACE_S`. The recorder closes its bag on SIGTERM, so a stopped run keeps a
-  readable bag.
+  readable bag. If a node was killed by a signal, the shared-memory files it could not remove
+  are cleaned (:func:`clean_shared_memory`).
 
 A node's exit status follows the contract of the node executables: 0 = the run ended
 normally (after the scenario's t_end), 1 = run failure (sequence gap, lockstep stall, barrier
@@ -34,8 +35,10 @@ import json
 import os
 import selectors
 import shlex
+import shutil
 import signal
 import subprocess
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,7 +49,7 @@ from vega_bus import barrier, topics
 __all__ = ["NodeSpec", "PARTICIPANTS", "DEFAULT_BARRIER_TIMEOUT_S", "TERM_GRACE_S",
            "FINISH_GRACE_S", "RunParameters", "RunLayout", "params_yaml", "default_run_id",
            "node_command", "environment_script", "shell_line", "describe_status",
-           "NodeProcess", "RunOutcome", "ReadyWatcher", "Supervisor"]
+           "clean_shared_memory", "NodeProcess", "RunOutcome", "ReadyWatcher", "Supervisor"]
 
 
 @dataclass(frozen=True)
@@ -290,6 +293,26 @@ def _last_line(path: Path, limit: int = 65536) -> str:
         return ""
     lines = [line.strip() for line in tail.splitlines() if line.strip()]
     return lines[-1] if lines else ""
+
+
+def clean_shared_memory() -> bool:
+    """Remove the Fast DDS shared-memory files no live process holds (``fastdds shm clean``).
+
+    A node that was killed (SIGKILL) cannot remove its ``/dev/shm/fastrtps_*`` files; Fast DDS's
+    own tool removes exactly those whose lock nobody holds, so concurrent runs are not
+    disturbed. Returns False if the tool is not found or fails (nothing else happens then).
+    """
+    tool = Path(sys.prefix) / "bin" / "fastdds"
+    tool = str(tool) if tool.is_file() else shutil.which("fastdds")
+    if tool is None:
+        return False
+    try:
+        done = subprocess.run([tool, "shm", "clean"], stdin=subprocess.DEVNULL,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                              timeout=30, check=False)
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+    return done.returncode == 0
 
 
 # ----------------------------------------------------------------------------- processes
@@ -616,6 +639,8 @@ class Supervisor:
                 signal.signal(sig, handler)
         t_end = time.monotonic()
         outcome.returncodes = {p.name: p.returncode for p in self.processes}
+        if any(code is not None and code < 0 for code in outcome.returncodes.values()):
+            clean_shared_memory()
         if t_barrier is not None:
             outcome.barrier_wall_s = t_barrier - t_start
             outcome.flight_wall_s = t_end - t_barrier
