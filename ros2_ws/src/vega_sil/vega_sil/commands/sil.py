@@ -7,10 +7,10 @@ process (:class:`vega_sil.orchestrate.Supervisor`) with the run's ROS_DOMAIN_ID,
 barrier is awaited, the flight supervised, and once every node has ended normally the report
 is written from the bag and the requirement table printed.
 
-Exit status: 0 every requirement passes; 1 a requirement fails, or the run failed (a node
-died or failed, barrier timeout — the message names the node); 2 bad input (arguments, or a
-node rejected its input, e.g. a malformed controller table: the node's own one-line error
-is shown); 130 interrupted (Ctrl-C) — every node is stopped, the bag closed.
+Exit status: 0 every requirement and health check of the report passes; 1 one fails, or the
+run failed (a node died or failed, barrier timeout — the message names the node); 2 bad input
+(arguments, or a node rejected its input, e.g. a malformed controller table: the node's own
+one-line error is shown); 130 interrupted (Ctrl-C) — every node is stopped, the bag closed.
 
 ``--dry-run`` writes the parameters file and prints the command of each node, one per line,
 ready to paste into separate terminals, without starting anything.
@@ -247,8 +247,8 @@ def register(subparsers):
         description="Validate the arguments, start every node as its own process, wait for "
                     "the start barrier, fly, record OUT/<run-id>/bag, write the report to "
                     "OUT/<run-id>/report and print the requirement table. Exit status: 0 "
-                    "every requirement passes, 1 a requirement fails or the run failed, 2 bad "
-                    "input, 130 interrupted.")
+                    "every requirement and health check passes, 1 one fails or the run "
+                    "failed, 2 bad input, 130 interrupted.")
     run.add_argument("--scenario", default=DEFAULT_SCENARIO, metavar="NAME|PATH",
                      help=f"shipped scenario name or YAML file (default: {DEFAULT_SCENARIO})")
     run.add_argument("--seed", default=None, metavar="N",
