@@ -308,6 +308,36 @@ def test_controller_sequence_gap_fails_the_run(nodes, tmp_path, pd_table):
     assert "sequence gap on /vega/ins: expected seq 1, got 2" in err
 
 
+@pytest.mark.ros
+def test_controller_stall_and_sigterm(nodes, tmp_path, pd_table):
+    """No measurement for stall_timeout_s → exit 1 naming what it waited for; SIGTERM while
+    waiting → one line, exit 0."""
+    import signal
+
+    path, table = pd_table
+    info = RunInfo("driven", 0, 10_000, 10_100, LoopTiming()).check()
+    driver = _Driver(info)
+    try:
+        stalled = nodes("tvc_controller", _params(
+            tmp_path / "a.yaml", controller_table=str(path), participants=["tvc_controller"],
+            stall_timeout_s=0.5))
+        driver.spin_until(lambda: "tvc_controller" in driver.ready)
+        driver.send(0, 10_000, 10_012, v=float(table.grid_v_mps[0]))
+        code, _out, err = _finish(stalled)
+        assert code == 1 and err.count("\n") == 1
+        assert "lockstep stall: waited 0.5 s for /vega/ins seq 1" in err
+
+        driver.ready.clear()
+        stopped = nodes("tvc_controller", _params(
+            tmp_path / "b.yaml", controller_table=str(path), participants=["tvc_controller"]))
+        driver.spin_until(lambda: "tvc_controller" in driver.ready)
+        stopped.send_signal(signal.SIGTERM)
+        code, _out, err = _finish(stopped)
+    finally:
+        driver.close()
+    assert code == 0 and err == "tvc_controller: stopped by SIGTERM\n"
+
+
 # ----------------------------------------------------------------------------- ROS: a short run
 @pytest.mark.ros
 def test_short_run_records_a_complete_bag(nodes, tmp_path, pd_table):
