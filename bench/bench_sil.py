@@ -26,6 +26,7 @@ ROOT = Path(__file__).resolve().parent.parent
 INSTALLED = ROOT / "ros2_ws/src/vega_gnc/config/lpv_controller.npz"
 _FLEW = re.compile(r"flew (?P<span>[\d.]+) s in (?P<wall>[\d.]+) s wall")
 _BARRIER = re.compile(r"start barrier complete after (?P<wall>[\d.]+) s")
+_CPU = re.compile(r"node CPU time \(start-up included\): (?P<text>.*)")
 _PLANT = re.compile(r"plant: flew [\d.]+ s in (?P<wall>[\d.]+) s wall")
 
 
@@ -69,6 +70,9 @@ def main():
                   f"real time (barrier to the last node's exit{plant_text}); start-up "
                   f"{float(barrier['wall']):.1f} s; whole command {total:.1f} s "
                   f"(exit {result.returncode})")
+            cpu = _CPU.search(result.stderr)
+            if cpu:
+                print(f"       CPU: {cpu['text']}")
 
 
 if __name__ == "__main__":

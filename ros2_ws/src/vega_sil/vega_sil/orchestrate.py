@@ -325,15 +325,32 @@ class NodeProcess:
     log_path: Path
     popen: subprocess.Popen
     pidfd: int | None = None
+    cpu_s: float | None = None
+    """CPU time (user + system) the node used [s], once it has ended."""
 
     @property
     def name(self) -> str:
         return self.spec.name
 
+    def reap(self, block: bool = False):
+        """Collect the exit status and CPU time (``wait4``) if the node has ended (or, with
+        ``block``, once it has)."""
+        if self.popen.returncode is not None:
+            return
+        try:
+            pid, status, usage = os.wait4(self.popen.pid, 0 if block else os.WNOHANG)
+        except ChildProcessError:  # reaped elsewhere: only the status is left
+            self.popen.poll()
+            return
+        if pid:
+            self.popen.returncode = os.waitstatus_to_exitcode(status)
+            self.cpu_s = usage.ru_utime + usage.ru_stime
+
     @property
     def returncode(self) -> int | None:
         """Exit status once it has ended (negative: killed by that signal), else None."""
-        return self.popen.poll()
+        self.reap()
+        return self.popen.returncode
 
     def last_log_line(self) -> str:
         """The last non-empty line the node wrote (its one-line error, if it failed)."""
@@ -347,13 +364,15 @@ class RunOutcome:
     ``status``: ``"ok"`` (every node ended with 0), ``"failed"`` (a node failed, died, or
     the barrier timed out), ``"bad_input"`` (a node rejected its input: exit 2) or
     ``"interrupted"``; ``message`` says which node and how (one line, empty if ok);
-    ``returncodes`` the exit status of every node; ``flight_wall_s`` the wall time from the
+    ``returncodes`` the exit status of every node, ``cpu_s`` its CPU time (user + system)
+    [s]; ``flight_wall_s`` the wall time from the
     barrier to the end (None if the barrier never completed).
     """
 
     status: str
     message: str = ""
     returncodes: dict[str, int | None] = field(default_factory=dict)
+    cpu_s: dict[str, float | None] = field(default_factory=dict)
     flight_wall_s: float | None = None
     barrier_wall_s: float | None = None
 
@@ -589,7 +608,7 @@ class Supervisor:
             while self._running() and time.monotonic() < deadline:
                 self._wait_any(deadline - time.monotonic())
         for process in self.processes:
-            process.popen.wait()
+            process.reap(block=True)
             if process.pidfd is not None:
                 os.close(process.pidfd)
                 process.pidfd = None
@@ -639,6 +658,7 @@ class Supervisor:
                 signal.signal(sig, handler)
         t_end = time.monotonic()
         outcome.returncodes = {p.name: p.returncode for p in self.processes}
+        outcome.cpu_s = {p.name: p.cpu_s for p in self.processes}
         if any(code is not None and code < 0 for code in outcome.returncodes.values()):
             clean_shared_memory()
         if t_barrier is not None:

@@ -222,6 +222,11 @@ def _run(args):
     rtf = span / outcome.flight_wall_s if outcome.flight_wall_s else float("inf")
     _say(f"flew {span:g} s in {outcome.flight_wall_s:.2f} s wall ({rtf:.1f}x real time); "
          f"bag {plan.layout.bag_dir}")
+    cpu = outcome.cpu_s
+    if all(v is not None for v in cpu.values()):
+        _say("node CPU time (start-up included): " + ", ".join(
+            f"{name} {seconds:.1f} s" for name, seconds in cpu.items())
+            + f"; sum {sum(cpu.values()):.1f} s")
     t0 = time.monotonic()
     passed, table = _write_report(plan)
     print(table)
