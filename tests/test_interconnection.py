@@ -51,7 +51,7 @@ def test_dimensions_and_names(m40):
     assert len(m40.state_names) == 19 and len(set(m40.state_names)) == 19
     assert m40.input_names[:9] == W_INPUTS and m40.output_names == W_OUTPUTS + Y_NAMES
     assert m40.state_names[:8] == ("theta_rad", "theta_dot_radps", "z_m", "z_dot_mps",
-                                   "q1", "q2", "q1_dot", "q2_dot")
+                                   "eta1", "eta2", "q1_dot", "q2_dot")
     assert m40.rho_mps == pytest.approx(model_parameters(40.0).v_mps)
     assert m40.weights is THESIS
     no_notch = weighted_plant(40.0, THESIS.with_changes("n", "n", notches=False))
@@ -111,9 +111,22 @@ def test_beta_weight_eq_4_26(t):
     assert np.max(np.abs(ss[0])) <= 1.01 * w1 / 0.01
 
 
+def test_bending_in_frequency_normalised_coordinates(m40):
+    """η_i = ω_i q_i: each mode is the block [[0, ω_i], [−ω_i, −2ζω_i]] of M(ρ), at every ρ."""
+    i = {name: k for k, name in enumerate(m40.state_names)}
+    for t in (10.0, 90.0):
+        m = m40 if t == 40.0 else weighted_plant(t)
+        p = model_parameters(t)
+        for mode, omega in zip((1, 2), p.omega_radps):
+            k = [i[f"eta{mode}"], i[f"q{mode}_dot"]]
+            np.testing.assert_allclose(m.A[np.ix_(k, k)],
+                                       [[0.0, omega], [-omega, -2 * p.zeta * omega]], rtol=1e-12)
+
+
 def test_static_weights_and_channels(m40, data):
     p = model_parameters(40.0)
     _, _, Cg, Dg = linear_model(p)
+    Cg = Cg * np.array([1, 1, 1, 1, 1 / p.omega_radps[0], 1 / p.omega_radps[1], 1, 1])  # q = η/ω
     i = {name: k for k, name in enumerate(m40.state_names)}
     plant = [i[s] for s in m40.state_names[:8]]
     # W_θe (Eq. 4.20) on θ_c − θ_INS: the command path is W_θe·W_θc = 1/3.16

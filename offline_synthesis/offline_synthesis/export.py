@@ -119,6 +119,7 @@ def write_controller_table(path: str | Path, grid_v_mps, A, B, C, D, *, dt_s: fl
     try:
         np.savez_compressed(tmp, **arrays)
         load_controller_table(tmp)  # the flight software must accept it before it replaces anything
+        os.chmod(tmp, 0o644)        # mkstemp creates 0600; the table is installed and shared
         os.replace(tmp, out)
     finally:
         if os.path.exists(tmp):

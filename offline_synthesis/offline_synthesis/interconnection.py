@@ -273,6 +273,34 @@ def _wind_filter(p: ModelParameters, data: VehicleData, weights: WeightSet):
     return np.array([[-corner]]), np.array([[gain]]), np.array([[gain]]), np.zeros((1, 1))
 
 
+# Bending displacement states of G_LV and their names in M(ρ) (η_i = ω_i(ρ) q_i).
+_BENDING_STATES = (("q1", "eta1"), ("q2", "eta2"))
+
+
+def _frequency_normalised_bending(A, B, C, names, omega_radps):
+    """Bending displacements q_i → η_i = ω_i(ρ) q_i in M(ρ); ``names`` is renamed in place.
+
+    In (η_i, q̇_i) a bending mode is the rotation-like block [[0, ω_i], [−ω_i, −2ζω_i]], the
+    form of the W_β notch sections: a constant Lyapunov matrix (the identity) serves the
+    mode at every frequency, while in (q_i, q̇_i) the mode's energy metric diag(ω_i², 1)
+    changes along the flight and a ρ-independent or slowly varying X(ρ), Y(ρ) cannot follow
+    it. Without this change the 9-point LPV LMIs of the real plant did not solve.
+
+    The change is a frozen-point similarity x = T(ρ) x_η: every frozen plant keeps its
+    transfer function, and the frozen-point checks are unaffected. The LPV model in η
+    differs from the one in q by the rate term ρ̇ (dT⁻¹/dρ) T, i.e. η̇_i = ω_i q̇_i +
+    (ω̇_i/ω_i) η_i, which the synthesis neglects: |ω̇_i/ω_i| = |ρ̇ (dω_i/dρ)/ω_i| ≤ 35.8 m/s²
+    × 2.3e-4 s/m ≈ 8e-3 1/s on 10–90 s, against the modes' own decay ζω_i ≥ 0.24 1/s
+    (docs/SYNTHESIS.md §2).
+    """
+    T = np.ones(A.shape[0])
+    for (old, new), omega in zip(_BENDING_STATES, omega_radps):
+        i = names.index(old)
+        T[i] = 1.0 / omega                                   # q_i = η_i / ω_i
+        names[i] = new
+    return A * (1.0 / T)[:, None] * T[None, :], B / T[:, None], C * T[None, :]
+
+
 def weight_ss(name: str, p: ModelParameters, weights: WeightSet = THESIS,
               vehicle: VehicleData | None = None):
     """State-space realisation of a dynamic weight at one grid point.
@@ -408,11 +436,13 @@ def weighted_plant(t_s: float, weights: WeightSet = THESIS,
         sig.system("w_beta", wbeta, u),                                    # Eq. 4.26
     ])
     A, B, C, D = sig.matrices(np.vstack([e, y]))
+    names = list(loop_names)
+    A, B, C = _frequency_normalised_bending(A, B, C, names, p.omega_radps)
     beta_states = ["w_beta_lp"] + ([f"w_beta_notch{i}_{k}" for i in (1, 2) for k in "ab"]
                                    if w.notches else [])
     return GeneralizedPlant(
         A=A, B=B, C=C, D=D, n_w=9, n_u=1, n_e=6, n_y=4,
-        state_names=loop_names + ("wind_filter", "w_theta_z") + tuple(beta_states),
+        state_names=tuple(names) + ("wind_filter", "w_theta_z") + tuple(beta_states),
         input_names=W_INPUTS + (_U_NAME,), output_names=W_OUTPUTS + Y_NAMES,
         t_s=float(t_s), rho_mps=p.v_mps, weights=w)
 

@@ -31,10 +31,12 @@ from .verification import (dense_certificate, frozen_point_sweep, loop_margins,
                            time_at_velocity)
 from .weights import WEIGHT_SETS
 
-__all__ = ["thesis_scenario_metrics", "GRIDS", "grid_times", "rate_bounds_from_trajectory", "gridded_plant",
-           "SynthesisReport", "run_synthesis", "DEFAULT_TABLE"]
+__all__ = ["thesis_scenario_metrics", "GRIDS", "RATE_BOXES", "grid_times",
+           "rate_bounds_from_trajectory", "rate_box", "gridded_plant", "SynthesisReport",
+           "run_synthesis", "DEFAULT_TABLE"]
 
 GRIDS = ("thesis", "full")
+RATE_BOXES = ("with_frozen", "thesis")
 DEFAULT_TABLE = (Path(__file__).resolve().parents[2] / "ros2_ws" / "src" / "vega_gnc" / "config"
                  / "lpv_controller.npz")
 # Thesis: a 300-sample moving mean of its 4996 samples over 100 s ≈ 6.0 s, evaluated with
@@ -68,6 +70,23 @@ def rate_bounds_from_trajectory(context) -> tuple[float, float]:
     return float(mean[sel].min()), float(mean[sel].max())
 
 
+def rate_box(bounds, kind: str = "with_frozen") -> tuple[float, float]:
+    """The ρ̇ box of the synthesis from the trajectory's bounds (lo, hi) [m/s²].
+
+    ``"thesis"``: [lo, hi] as the thesis (all positive; ρ̇ = 0 is not admissible, so the
+    frozen-point LTI optima are not lower bounds of its γ, and a frozen closed loop is not
+    covered by the certificate). ``"with_frozen"`` (default): [min(lo, 0), hi], which also
+    covers constant velocity — frozen operation, the thrust tail-off after 90 s — and makes
+    the frozen-point γ_i lower bounds (docs/SYNTHESIS.md §3).
+    """
+    lo, hi = (float(b) for b in bounds)
+    if kind == "thesis":
+        return lo, hi
+    if kind == "with_frozen":
+        return min(lo, 0.0), hi
+    raise ValueError(f"--rate-box {kind!r}: expected one of {', '.join(RATE_BOXES)}")
+
+
 def gridded_plant(times_s, weights, context):
     """The weighted interconnection at each grid time, as the synthesis' input."""
     pts = [weighted_plant(float(t), weights, context) for t in times_s]
@@ -88,6 +107,8 @@ class SynthesisReport:
     times_s: list
     grid_v_mps: list
     rate_bounds_mps2: tuple
+    trajectory_rate_bounds_mps2: tuple = ()
+    rate_box: str = "with_frozen"
     gamma_lti: list = field(default_factory=list)
     gamma_min: float = float("nan")
     gamma: float = float("nan")
@@ -95,6 +116,7 @@ class SynthesisReport:
     conservatism: float = float("nan")
     certificate_grid_max: float = float("nan")
     certificate_dense_max: float = float("nan")
+    certificate_dense: dict = field(default_factory=dict)
     frozen: dict = field(default_factory=dict)
     margins: list = field(default_factory=list)
     stage_times_s: dict = field(default_factory=dict)
@@ -113,7 +135,8 @@ def _plain(x):
 
 def run_synthesis(grid: str = "thesis", weights: str = "shipped", out: str | Path | None = None,
                   context=None, progress: Callable[[str], None] = print,
-                  verify: bool = True, n_frozen: int = 121) -> SynthesisReport:
+                  verify: bool = True, n_frozen: int = 121,
+                  box: str = "with_frozen") -> SynthesisReport:
     """Run the chain and write the controller table (and ``<out>.json``, the report)."""
     from vega_plant.dynamics import OUTPUTS
     from vega_plant.parameters import default_context
@@ -125,15 +148,18 @@ def run_synthesis(grid: str = "thesis", weights: str = "shipped", out: str | Pat
     ws = WEIGHT_SETS[weights]
     out = Path(out) if out else DEFAULT_TABLE
     times = grid_times(grid, ctx)
-    rates = rate_bounds_from_trajectory(ctx)
+    trajectory_rates = rate_bounds_from_trajectory(ctx)
+    rates = rate_box(trajectory_rates, box)
     clock = time.perf_counter
 
     t0 = clock()
     plant, points = gridded_plant(times, ws, ctx)
-    rep = SynthesisReport(grid, weights, _plain(times), _plain(plant.rho), rates)
+    rep = SynthesisReport(grid, weights, _plain(times), _plain(plant.rho), rates,
+                          trajectory_rates, box)
     rep.stage_times_s["interconnection"] = clock() - t0
     progress(f"[1/7] weighted plant M(rho): {len(times)} grid points, {plant.A.shape[-1]} states, "
-             f"rate bounds [{rates[0]:.2f}, {rates[1]:.2f}] m/s^2 ({rep.stage_times_s['interconnection']:.1f} s)")
+             f"rate box [{rates[0]:.2f}, {rates[1]:.2f}] m/s^2 ({box}; trajectory "
+             f"[{trajectory_rates[0]:.2f}, {trajectory_rates[1]:.2f}]) ({rep.stage_times_s['interconnection']:.1f} s)")
 
     t0 = clock()
     rep.gamma_lti = [float(frozen_point_gamma(p).gamma) for p in points]
@@ -162,8 +188,16 @@ def run_synthesis(grid: str = "thesis", weights: str = "shipped", out: str | Pat
 
     if verify:
         t0 = clock()
-        _, _, worst = dense_certificate(result, ws, ctx, factor=4)
+        dense_t, _, worst = dense_certificate(result, ws, ctx, factor=4)
         rep.certificate_dense_max = float(worst.max())
+        point_worst = worst.max(axis=1)
+        rep.certificate_dense = {
+            "factor": 4, "n_points": int(dense_t.size), "rate_vertices": list(
+                result.rate_vertices or (0.0,)),
+            "n_failed": int(np.sum(point_worst >= 0.0)),
+            "failed_times_s": _plain(dense_t[point_worst >= 0.0]),
+            "worst_t_s": float(dense_t[int(np.argmax(point_worst))]),
+            "max_eig_per_time": _plain(point_worst), "times_s": _plain(dense_t)}
         frozen_times = np.linspace(times[0], times[-1], n_frozen)
         for label, rate in (("rate_low", rates[0]), ("rate_high", rates[1])):
             sweep = frozen_point_sweep(result, ws, ctx, frozen_times, rate)
@@ -174,8 +208,11 @@ def run_synthesis(grid: str = "thesis", weights: str = "shipped", out: str | Pat
         rep.margins = [loop_margins(result, ctx, float(t), rates[1]).as_dict() for t in times]
         rep.stage_times_s["verification"] = clock() - t0
         hi = rep.frozen["rate_high"]
-        progress(f"[5/7] verification: certificate max eig {rep.certificate_dense_max:.2e} on a "
-                 f"4x denser grid; {hi['n']} frozen points stable={hi['all_stable']}, worst "
+        dense = rep.certificate_dense
+        progress(f"[5/7] verification: certificate max eig {rep.certificate_grid_max:.2e} at the "
+                 f"grid points, on the 4x denser grid {dense['n_failed']} of {dense['n_points']} "
+                 f"points fail (worst {rep.certificate_dense_max:.2e} at t={dense['worst_t_s']:.1f}"
+                 f" s); {hi['n']} frozen points stable={hi['all_stable']}, worst "
                  f"weighted Hinf {hi['worst_hinf']:.4f} at t={hi['worst_t_s']:.1f} s "
                  f"({rep.stage_times_s['verification']:.1f} s)")
 
@@ -192,6 +229,7 @@ def run_synthesis(grid: str = "thesis", weights: str = "shipped", out: str | Pat
                   "grid": "m/s", "rate": "m/s^2"},
         "weights": {f.name: getattr(ws, f.name) for f in dataclasses.fields(ws)},
         "weight_set": weights, "grid": grid, "grid_times_s": _plain(times),
+        "rate_box": box, "trajectory_rate_bounds_mps2": list(trajectory_rates),
         "solver": rep.solver, "gamma_lti": rep.gamma_lti, "gamma_quadratic": rep.gamma_quadratic,
     }
     write_controller_table(out, plant.rho, *mats, dt_s=dt, gamma=rep.gamma,

@@ -14,7 +14,7 @@ def _run(args: argparse.Namespace) -> int:
         print(line, flush=True)
 
     rep = run_synthesis(grid=args.grid, weights=args.weights, out=args.out,
-                        progress=progress, verify=not args.no_verify)
+                        progress=progress, verify=not args.no_verify, box=args.rate_box)
     print()
     print(f"summary: grid {rep.grid} ({len(rep.times_s)} points), weights {rep.weights}")
     print(f"  gamma_LTI max {max(rep.gamma_lti):.4f} | gamma_min {rep.gamma_min:.4f} | "
@@ -43,6 +43,9 @@ def register(subparsers) -> None:
                    help="thesis: t = 10..90 s (9 points); full: 0-100 s, placed in velocity")
     p.add_argument("--weights", choices=("shipped", "thesis"), default="shipped",
                    help="named weight set (docs/SYNTHESIS_WEIGHTS.md)")
+    p.add_argument("--rate-box", choices=("with_frozen", "thesis"), default="with_frozen",
+                   help="scheduling-rate box: with_frozen = [min(lo, 0), hi] (default, covers "
+                        "constant velocity), thesis = [lo, hi] of the trajectory (all positive)")
     p.add_argument("--out", metavar="FILE",
                    help="output .npz (default: ros2_ws/src/vega_gnc/config/lpv_controller.npz)")
     p.add_argument("--no-verify", action="store_true", help="skip the verification stage")
