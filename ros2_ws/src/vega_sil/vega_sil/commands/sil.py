@@ -17,6 +17,7 @@ ready to paste into separate terminals, without starting anything.
 """
 
 import os
+import resource
 import sys
 import time
 from pathlib import Path
@@ -224,9 +225,11 @@ def _run(args):
          f"bag {plan.layout.bag_dir}")
     cpu = outcome.cpu_s
     if all(v is not None for v in cpu.values()):
+        own = resource.getrusage(resource.RUSAGE_SELF)
         _say("node CPU time (start-up included): " + ", ".join(
             f"{name} {seconds:.1f} s" for name, seconds in cpu.items())
-            + f"; sum {sum(cpu.values()):.1f} s")
+            + f"; sum {sum(cpu.values()):.1f} s; vega sil run itself "
+              f"{own.ru_utime + own.ru_stime:.1f} s")
     t0 = time.monotonic()
     passed, table = _write_report(plan)
     print(table)
