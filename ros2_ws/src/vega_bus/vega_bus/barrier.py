@@ -46,9 +46,11 @@ SUBSCRIBERS: Mapping[str, tuple[str, ...]] = {
     RECORDED.name: ("plant", "ins_sensor", "tvc_controller", "tvc_actuator"),
 }
 
-# The participant publishing each topic a participant subscribes to (control topics included).
+# The participant publishing each topic a participant subscribes to. /vega/recorded is not
+# required: a tool taking the recorder's seat (vega replay --check-controller) publishes no
+# progress, and the nodes fall back to DDS acknowledgements then (vega_bus.shell.Shell.finish).
 PUBLISHERS: Mapping[str, str] = {
-    **{t.name: t.publisher for t in (TRUTH, INS, TVC_CMD, ACTUATOR, CLOCK, RECORDED)},
+    **{t.name: t.publisher for t in (TRUTH, INS, TVC_CMD, ACTUATOR, CLOCK)},
     RUN.name: RUN.publisher,
 }
 

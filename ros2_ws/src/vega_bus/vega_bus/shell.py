@@ -242,13 +242,15 @@ class Shell:
         reports ``final`` truth messages written (then every message of the run has reached
         it, and every node has had its last input, since each node's last output follows its
         last input); without one, :meth:`flush`. Waiting for the report instead of the DDS
-        acknowledgements saves ≈ 2.3 s per run: Fast DDS acknowledges on its heartbeat."""
-        if progress.active:
-            self.wait_until(lambda: progress.count >= final,
+        acknowledgements saves ≈ 2.3 s per run: Fast DDS acknowledges on its heartbeat.
+        A participant in the recorder's seat that publishes no progress (the controller check
+        of ``vega replay``), or a recorder that left, means :meth:`flush` instead."""
+        if progress.linked():
+            self.wait_until(lambda: progress.count >= final or not progress.linked(),
                             lambda: f"the recorder's final report ({progress.count}/{final} "
                                     f"truth messages written)",
                             progress=lambda: progress.count)
-        else:
+        if progress.count < final:
             self.flush(publishers)
 
     def flush(self, publishers, timeout_s: float | None = None) -> None:
@@ -278,7 +280,8 @@ class Shell:
 class RecorderProgress:
     """The latest count the recorder reported on ``/vega/recorded`` (:mod:`vega_bus.schedule`).
 
-    ``active`` is False (and ``count`` stays 0) when "recorder" is not a participant.
+    Subscribed only when "recorder" is a participant; :meth:`linked` tells whether a
+    publisher of the reports is matched (the real recorder is; a tool in its seat may not be).
     """
 
     def __init__(self, shell: Shell, participants):
@@ -286,13 +289,18 @@ class RecorderProgress:
 
         from .topics import RECORDED, data_qos
 
-        self.active = "recorder" in participants
         self.count = 0
-        if self.active:
-            shell.node.create_subscription(UInt32, RECORDED.name, self._on_report, data_qos())
+        self._sub = None
+        if "recorder" in participants:
+            self._sub = shell.node.create_subscription(UInt32, RECORDED.name, self._on_report,
+                                                       data_qos())
 
     def _on_report(self, msg) -> None:
         self.count = max(self.count, int(msg.data))
+
+    def linked(self) -> bool:
+        """True while a publisher of ``/vega/recorded`` is matched."""
+        return self._sub is not None and self._sub.get_publisher_count() > 0
 
 
 def _one_line(exc: BaseException) -> str:

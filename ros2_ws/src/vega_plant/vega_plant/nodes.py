@@ -106,7 +106,7 @@ def _plant(shell: Shell) -> None:
     n, frame_ms = info.n_frames, info.timing.frame_ms
     wall0 = time.monotonic()
     for k in range(n + 1):
-        if recorded.active and k - recorded.count >= RECORDER_WINDOW_FRAMES:
+        if k - recorded.count >= RECORDER_WINDOW_FRAMES and recorded.linked():
             shell.wait_until(lambda: k - recorded.count < RECORDER_WINDOW_FRAMES,
                              lambda: f"the recorder (it reported {recorded.count} of {k} "
                                      f"frames)")
