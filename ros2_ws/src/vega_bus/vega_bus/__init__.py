@@ -31,7 +31,11 @@ Additions to the contract first agreed (other helpers: read this):
   when "recorder" is a participant the plant stays at most
   :data:`vega_bus.schedule.RECORDER_WINDOW_FRAMES` frames ahead of it (back-pressure: the
   recorder is the one node no data dependency holds in step), and every node ends its run on
-  the final report (below). Subscribed by plant, ins_sensor, tvc_controller, tvc_actuator.
+  the final report (below). Subscribed by plant, ins_sensor, tvc_controller, tvc_actuator;
+  the recorder's barrier requires those matches, the others' barriers do not require the
+  recorder's publisher (a tool in the recorder's seat, such as ``vega replay
+  --check-controller``, publishes no progress: then nobody is paced and every node ends on
+  DDS acknowledgements).
 * ``stall_timeout_s`` parameter (above).
 * ``/clock`` is published RELIABLE with depth :data:`vega_bus.topics.DATA_QUEUE_DEPTH` (not 1),
   so that a lagging recorder loses no tick.
