@@ -430,11 +430,14 @@ def check_controller(path: str | Path, table: str | Path | None = None, *,
         run_pub = node.create_publisher(String, topics.RUN.name, topics.control_qos())
         ins_pub = node.create_publisher(topics.message_class(topics.INS.type_name),
                                         topics.INS.name, topics.data_qos())
-        node.create_subscription(topics.message_class(topics.TVC_CMD.type_name),
-                                 topics.TVC_CMD.name, received.append, topics.data_qos(),
-                                 raw=True)
+        cmd_sub = node.create_subscription(topics.message_class(topics.TVC_CMD.type_name),
+                                           topics.TVC_CMD.name, received.append,
+                                           topics.data_qos(), raw=True)
         run_pub.publish(String(data=info.to_json()))
-        barrier = StartBarrier(node, participants, [ins_pub],
+        # matched both ways before the run starts: the controller hears the measurements,
+        # and this node hears the controller's commands from the first one
+        barrier = StartBarrier(node, participants, publishers=[ins_pub],
+                               subscriptions=[cmd_sub],
                                subscribers={topics.INS.name: ("tvc_controller",)})
         workdir = Path(tempfile.mkdtemp(prefix="vega-replay-"))
         controller = _ControllerProcess(params, workdir, rosenv.ros_environment())
