@@ -238,3 +238,13 @@ def test_metadata_missing_fails(run, tmp_path):
     check = bagcheck.check_bag(tmp_path / "bare")
     assert _failed(check) == {"metadata", "coverage"}
     assert check.exit_code == 1
+
+
+def test_bag_without_truth_is_bad_input(run, tmp_path, capsys):
+    """A bag of the graph with no truth at all cannot be checked: one line, exit status 2."""
+    bag = write_bag(tmp_path / "bag", run,
+                    lambda m: [x for x in m if x[0] != topics.TRUTH.name])
+    status, out, err = _vega(["check", str(bag)], capsys)
+    assert status == 2 and out == ""
+    assert err.strip() == f"vega: error: bag {bag}: no messages on /vega/truth: not a " \
+                          f"complete run bag (or the run died before its first frame)"
