@@ -589,12 +589,14 @@ class Supervisor:
             self._wait_any(1.0)
 
     # -- stopping
-    def stop(self, grace_s: float = TERM_GRACE_S):
-        """Stop every node still running: SIGTERM, then SIGKILL after ``grace_s``; reap all.
+    def stop(self, grace_s: float | None = None):
+        """Stop every node still running: SIGTERM, then SIGKILL after ``grace_s`` (default
+        :data:`TERM_GRACE_S`); reap all.
 
         Signals go to each node's process group while its leader is not yet reaped (so the
         group id cannot have been reused).
         """
+        grace_s = TERM_GRACE_S if grace_s is None else grace_s
         for sig, wait_s in ((signal.SIGTERM, grace_s), (signal.SIGKILL, grace_s)):
             running = self._running()
             if not running:
