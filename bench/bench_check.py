@@ -5,9 +5,12 @@ Flies the ``nominal`` scenario (0–100 s) in process with TABLE (default: the s
 controller table, else the PD test fixture of tests/fixture_tables.py), writes its run bag
 with the real message types (vega_sil.simbag), then runs ``vega check BAG`` (the venv's console script) as
 a fresh process five times and reports the wall time (interpreter start and imports included) and
+its CPU time (user + sys: the figure that does not depend on the machine's load), and
 the in-process time of :func:`vega_sil.bagcheck.check_bag` alone.
 """
 
+import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -50,20 +53,25 @@ def main():
         span = scenario.t_end_s - scenario.t_start_s
         print(f"bag: {span:g} s of flight ({scenario.name}, {kind} table), "
               f"{size / 1e6:.1f} MB in {n} MCAP file")
-        walls, status = [], None
+        walls, cpus, status = [], [], None
         for _ in range(RUNS):
+            r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
             t0 = time.perf_counter()
             proc = subprocess.run([str(VEGA), "check", str(bag)], capture_output=True,
                                   text=True)
             walls.append(time.perf_counter() - t0)
+            r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpus.append(r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime)
             status = proc.returncode
         inproc = []
         for _ in range(RUNS):
             t0 = time.perf_counter()
             bagcheck.check_bag(bag)
             inproc.append(time.perf_counter() - t0)
-        print(f"vega check (fresh process, {RUNS} runs): median {statistics.median(walls):.2f} s, "
-              f"max {max(walls):.2f} s (exit status {status})")
+        print(f"vega check (fresh process, {RUNS} runs): wall median "
+              f"{statistics.median(walls):.2f} s, max {max(walls):.2f} s; CPU (user + sys) "
+              f"median {statistics.median(cpus):.2f} s (exit status {status}; load average "
+              f"{os.getloadavg()[0]:.1f})")
         print(f"check_bag in process (warm imports): median {statistics.median(inproc):.2f} s")
 
 
