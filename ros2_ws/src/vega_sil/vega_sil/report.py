@@ -69,7 +69,8 @@ def markdown(check: BagCheck, plots=PLOTS) -> str:
     if r.t_ms.size:
         lines.append(f"| span | {r.t_ms[0] / 1e3:.3f} … {r.t_ms[-1] / 1e3:.3f} s |")
     lines += ["", "## Requirements (thesis Table 3.1; figures as in Table 5.1)", "",
-              "| requirement | metric | value | bound | margin | at [s] | pass | thesis Table 5.1 |",
+              _row("requirement", "metric", "value", "bound", "margin", "at [s]", "pass",
+                   "thesis Table 5.1"),
               "|---|---|---|---|---|---|---|---|"]
     for q in check.requirements.results:
         s, u = q.display_scale, q.display_unit
