@@ -4,9 +4,9 @@ Usage: .venv/bin/vega-env python bench/bench_check.py [TABLE.npz]
 Flies the ``nominal`` scenario (0–100 s) in process with TABLE (default: the shipped
 controller table, else the PD test fixture of tests/fixture_tables.py), writes its run bag
 with the real message types (vega_sil.simbag), then runs ``vega check BAG`` (the venv's
-console script) as a fresh process five times and reports the wall time (interpreter start and imports included) and
-its CPU time (user + sys: the figure that does not depend on the machine's load), and
-the in-process time of :func:`vega_sil.bagcheck.check_bag` alone.
+console script) as a fresh process five times and reports the wall time (interpreter start
+and imports included), its CPU time (user + sys: the figure that does not depend on the
+machine's load), and the in-process time of :func:`vega_sil.bagcheck.check_bag` alone.
 """
 
 import os
