@@ -149,3 +149,19 @@ def test_first_difference_compares_all_fields_but_compute_time():
     assert "deflection_cmd_rad" in diff  # bit for bit: -0.0 is not 0.0
     assert replay.first_difference([cmd(), cmd()], [cmd()]) == \
         (1, "the controller sent 1 commands, the bag holds 2")
+
+
+def test_controller_replay_of_a_real_sil_run(run, tmp_path, capsys):
+    """End to end: a short `vega sil run` (five processes), then the controller replay of
+    its bag reproduces every command the SIL controller sent (the SIL regression check)."""
+    from sil_flights import run_layout_in, vega_sil_run, write_short_scenario
+
+    scenario = write_short_scenario(tmp_path, "thesis", "thesis_replay", 20.0, 21.0)
+    flight = vega_sil_run(["--scenario", scenario, "--table", run.table_path,
+                           "--out", tmp_path / "out"])
+    assert flight.returncode == 0, flight.stderr
+    bag = run_layout_in(tmp_path / "out").bag_dir
+    status = cli.main(["replay", str(bag), "--check-controller"])
+    out = capsys.readouterr().out
+    assert status == 0, out
+    assert "50 commands replayed, 50 recorded, 50 compared" in out
