@@ -1,7 +1,7 @@
 """The contract of the VEGA TVC node graph, shared by vega_plant, vega_gnc and vega_sil.
 
 Modules: :mod:`~vega_bus.topics` (names, types, QoS), :mod:`~vega_bus.timing` (loop timing,
-ms stamps), :mod:`~vega_bus.schedule` (the lockstep schedule, :class:`RunInfo`, expected
+ms stamps), :mod:`~vega_bus.records` (the INS measurement record), :mod:`~vega_bus.schedule` (the lockstep schedule, :class:`RunInfo`, expected
 message counts), :mod:`~vega_bus.barrier` (start barrier), :mod:`~vega_bus.shell` (the ROS
 shell every node shares: parameters, waiting, exit codes, signals).
 

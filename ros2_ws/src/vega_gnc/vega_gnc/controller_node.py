@@ -30,30 +30,15 @@ from __future__ import annotations
 import os
 import sys
 import time
-from typing import NamedTuple
-
 from vega_bus import topics
+from vega_bus.records import InsOut
 from vega_bus.schedule import RunInfo
 from vega_bus.shell import EXIT_BAD_INPUT, NodeExit, Shell, run_node
 from vega_bus.timing import ms_to_stamp
 
-__all__ = ["default_table_path", "Sample", "to_sample", "main"]
+__all__ = ["default_table_path", "to_sample", "main"]
 
 _NS_PER_MS = 1_000_000
-
-
-class Sample(NamedTuple):
-    """A received InsMeasurement as :meth:`ControllerNode.step` reads it (stamps in ms)."""
-
-    stamp_ms: int
-    sample_ms: int
-    seq: int
-    pitch_rad: float
-    pitch_rate_radps: float
-    drift_m: float
-    drift_rate_mps: float
-    velocity_mps: float
-    valid: bool
 
 
 def default_table_path() -> str:
@@ -70,11 +55,12 @@ def _ms_floor(stamp) -> tuple[int, bool]:
     return int(stamp.sec) * 1000 + ms, rest == 0
 
 
-def to_sample(msg) -> Sample:
-    """An InsMeasurement as a :class:`Sample`; stamps off the millisecond grid → invalid."""
+def to_sample(msg) -> InsOut:
+    """An InsMeasurement as an :class:`vega_bus.records.InsOut`; stamps off the millisecond
+    grid → invalid."""
     stamp, ok1 = _ms_floor(msg.header.stamp)
     sample, ok2 = _ms_floor(msg.sample_stamp)
-    return Sample(stamp, sample, msg.seq, msg.pitch_rad, msg.pitch_rate_radps, msg.drift_m,
+    return InsOut(stamp, sample, msg.seq, msg.pitch_rad, msg.pitch_rate_radps, msg.drift_m,
                   msg.drift_rate_mps, msg.velocity_mps, bool(msg.valid) and ok1 and ok2)
 
 

@@ -7,15 +7,15 @@ period (20 ms) goes through :class:`vega_gnc.controller_runtime.ControllerRuntim
 flown, at its arrival; the command is stamped arrival + computing latency (12 ms)
 (:mod:`vega_bus.timing`). → :class:`CommandOut` (``TvcCommand``)
 
-The flight side never imports the truth side (vega_plant): a measurement is anything with the
-fields of :class:`vega_plant.sim_nodes.InsOut` (``stamp_ms``, ``sample_ms``, ``pitch_rad``,
-``pitch_rate_radps``, ``drift_m``, ``drift_rate_mps``, ``velocity_mps``, ``valid``).
+A measurement is a :class:`vega_bus.records.InsOut` (the flight side never imports the truth
+side, vega_plant).
 """
 
 from __future__ import annotations
 
 from typing import NamedTuple
 
+from vega_bus.records import InsOut
 from vega_bus.timing import LoopTiming, check_ms
 
 from .controller_runtime import ControllerRuntime, Measurement, RuntimeLimits
@@ -69,7 +69,7 @@ class ControllerNode:
         self._latency_ms = timing.computing_latency_ms
         self._seq = 0
 
-    def step(self, meas) -> CommandOut | None:
+    def step(self, meas: InsOut) -> CommandOut | None:
         """Process one measurement; None if its sample time is not on the controller period."""
         if meas.sample_ms % self._period_ms:
             return None

@@ -9,7 +9,7 @@ stamps). The controller's step class, on the flight side, is
 
 * :class:`InsNode` — samples the truth every frame (100 Hz) with
   :class:`vega_plant.ins.InsSensor` (seeded noise); the measurement is stamped sample +
-  sensor latency (12 ms). → :class:`InsOut` (``InsMeasurement``)
+  sensor latency (12 ms). → :class:`vega_bus.records.InsOut` (``InsMeasurement``)
 * ControllerNode (:mod:`vega_gnc.sim_controller`) — every measurement whose sample time is a multiple of the
   controller period (20 ms) goes through :class:`vega_gnc.controller_runtime.ControllerRuntime`
   exactly as flown, at its arrival; the command is stamped arrival + computing latency (12 ms).
@@ -24,6 +24,7 @@ from __future__ import annotations
 import bisect
 from typing import NamedTuple
 
+from vega_bus.records import InsOut
 from vega_bus.timing import LoopTiming, check_ms
 
 from .actuator import ActuatorParams, TvcActuator
@@ -31,25 +32,7 @@ from .ins import InsParams, InsSensor
 from .parameters import ModelParameters
 from .sim_plant import TruthOut
 
-__all__ = ["InsOut", "ActuatorOut", "InsNode", "ActuatorNode"]
-
-
-class InsOut(NamedTuple):
-    """One INS measurement: the fields of ``vega_msgs/InsMeasurement`` (SI units).
-
-    ``stamp_ms`` is the header stamp (availability = sample + sensor latency), ``sample_ms``
-    the truth time it represents.
-    """
-
-    stamp_ms: int
-    sample_ms: int
-    seq: int
-    pitch_rad: float
-    pitch_rate_radps: float
-    drift_m: float
-    drift_rate_mps: float
-    velocity_mps: float
-    valid: bool
+__all__ = ["ActuatorOut", "InsNode", "ActuatorNode"]
 
 
 class ActuatorOut(NamedTuple):
