@@ -351,7 +351,7 @@ def test_short_run_records_a_complete_bag(nodes, tmp_path, pd_table):
     scenario = _short_scenario(tmp_path, t_end_s=11.0)
     bag = tmp_path / "bag"
     params = _params(tmp_path / "p.yaml", scenario=str(scenario), controller_table=str(path),
-                     bag_path=str(bag))
+                     bag_path=str(bag), barrier_timeout_s=60.0)   # start-up is slow under load
     procs = {name: nodes(name, params) for name in reversed(PARTICIPANTS)}
     results = {name: _finish(proc) for name, proc in procs.items()}
     for name, (code, _out, err) in results.items():
