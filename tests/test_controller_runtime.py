@@ -94,6 +94,11 @@ def test_velocity_outside_grid_is_clamped(table):
     ref = at_end.step(_meas(0, y, GRID[0]))
     assert below.status == STATUS_VELOCITY_CLAMPED and ref.status == STATUS_OK
     assert below.deflection_cmd_rad == pytest.approx(ref.deflection_cmd_rad, rel=1e-14)
+    # the reported scheduling velocity is the one the matrices belong to (TvcCommand field doc)
+    assert below.scheduling_velocity_mps == GRID[0] == ref.scheduling_velocity_mps
+    above = ControllerRuntime(table, RuntimeLimits(limit_rad=1e9)).step(_meas(0, y, 1e4))
+    assert above.status == STATUS_VELOCITY_CLAMPED
+    assert above.scheduling_velocity_mps == GRID[-1]
 
 
 def test_command_limited_to_actuator_range(table):

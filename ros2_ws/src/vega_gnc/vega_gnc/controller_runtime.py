@@ -125,15 +125,18 @@ class ControllerRuntime:
         """Copy of the controller state."""
         return self._xy[:self._n].copy()
 
-    def _schedule(self, v: float) -> tuple[np.ndarray, int]:
+    def _schedule(self, v: float) -> tuple[np.ndarray, float, int]:
+        """Controller matrices at velocity ``v``, the velocity they belong to (``v`` clamped
+        to the grid) and the scheduling status."""
         g = self.table.grid_v_mps
         status = STATUS_OK
-        if not g[0] <= v <= g[-1]:
+        v_sched = min(max(v, float(g[0])), float(g[-1]))
+        if v_sched != v:
             status = STATUS_VELOCITY_CLAMPED
-        i, w, _, _ = self.table.weights(v)
+        i, w, _, _ = self.table.weights(v_sched)
         np.multiply(self._dS[i], w, out=self._work)
         self._work += self._S[i]
-        return self._work, status
+        return self._work, v_sched, status
 
     def step(self, m: Measurement, now_s: float | None = None) -> Command:
         """Advance one controller period with measurement ``m`` (used at time ``now_s``,
@@ -160,7 +163,7 @@ class ControllerRuntime:
                                STATUS_HOLD_LAST)
             self.reset()
             return Command(0.0, v if math.isfinite(v) else float("nan"), STATUS_SAFE_ZERO)
-        S, status = self._schedule(v)
+        S, v_sched, status = self._schedule(v)
         n = self._n
         self._xy[n:] = values
         self._xy[n:] *= self._sign
@@ -173,4 +176,4 @@ class ControllerRuntime:
             status = max(status, STATUS_LIMITED, key=_SEVERITY.__getitem__)
         self._last_valid_stamp = m.stamp_s
         self._last_command = u
-        return Command(u, v, status)
+        return Command(u, v_sched, status)
