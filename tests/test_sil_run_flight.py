@@ -204,7 +204,8 @@ def test_barrier_timeout_names_the_missing(tmp_path, short_scenario, pd_table):
                                  barrier_timeout_s=5.0)
     outcome = sup.run()
     assert outcome.status == "failed"
-    assert "not ready: ghost" in outcome.message
+    lists = re.findall(r"not ready: (\w+(?:, \w+)*)", outcome.message)
+    assert lists and all("ghost" in names.split(", ") for names in lists), outcome.message
     assert not any(alive(p.popen.pid) for p in sup.processes)
 
 
