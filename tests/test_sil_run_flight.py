@@ -32,6 +32,11 @@ pytestmark = pytest.mark.ros
 SHORT_FRAMES = 401
 """Truth messages of the short scenario: frames 10.00 … 14.00 s, both ends included."""
 
+WALL_CLOCK_CHECKS = ("compute_time",)
+"""Health checks on wall-clock measurements (the controller's step time against its 12 ms
+budget): a descheduled process on a loaded, non-real-time machine can exceed it, so the tests
+assert the report's verdict agrees with them rather than that they pass."""
+
 
 @pytest.fixture(scope="module")
 def pd_table(tmp_path_factory):
@@ -62,9 +67,11 @@ def short_flight(tmp_path_factory, short_scenario, pd_table):
 
 
 def test_flight_writes_bag_report_and_table(short_flight, short_scenario, pd_table):
-    """The run directory holds params, commands, logs, a readable bag and the report; the
-    printed table and exit status agree with the requirement checker applied to the in-process
-    run of the same scenario (the PD fixture is not asserted to meet Table 3.1)."""
+    """The run directory holds params, commands, logs, a readable bag and the report (JSON,
+    Markdown, plots); each requirement passes or fails, in the report and in the printed table,
+    exactly as the requirement checker finds on the in-process run of the same scenario (the
+    PD fixture is not asserted to meet Table 3.1); the health checks pass (except the
+    wall-clock ones); the exit status is the report's verdict."""
     result, layout = short_flight
     assert result.returncode in (0, 1), result.stderr
     assert sorted(p.name for p in layout.run_dir.iterdir()) == [
@@ -79,12 +86,14 @@ def test_flight_writes_bag_report_and_table(short_flight, short_scenario, pd_tab
     assert sorted(report["plots"]) == sorted(p.name for p in layout.report_dir.glob("*.png"))
     assert report["plots"]
     reference = run_scenario(short_scenario, pd_table).metrics()
-    assert result.returncode == (0 if reference.passed else 1), result.stdout + result.stderr
+    assert {r["key"]: r["passed"] for r in report["requirements"]} == {
+        r.key: r.passed for r in reference.results}
+    assert all(h["passed"] for h in report["health"] if h["key"] not in WALL_CLOCK_CHECKS)
     for r in reference.results:
         row = next(line for line in result.stdout.splitlines()
                    if line.startswith(r.requirement) and f" {r.metric} " in line)
         assert f"{r.value * r.display_scale:.6g} {r.display_unit}" in row
-        assert row.split()[-1 if r.thesis is None else -3] in ("yes", "NO")
+        assert row.split()[-1 if r.thesis is None else -3] == ("yes" if r.passed else "NO")
     assert "flew 4 s in" in result.stderr
 
 
@@ -210,25 +219,35 @@ def test_barrier_timeout_names_the_missing(tmp_path, short_scenario, pd_table):
 
 
 # ----------------------------------------------------------------------------- thesis
+def _report_of(out):
+    return json.loads((run_layout_in(out).report_dir / "report.json").read_text())
+
+
 def test_thesis_scenario(tmp_path, pd_table):
     """The whole thesis scenario (10–90 s) through ``vega sil run``.
 
     With the installed LPV table (``vega_gnc/config/lpv_controller.npz``, the default of
-    ``vega sil run``): every requirement of Table 3.1 and every health check passes (exit 0).
-    Until that table exists: flown with the PD fixture, the run ends normally and its verdict
-    (exit status) is the requirement checker's on the in-process run of the same scenario —
-    Table 3.1 itself is not asserted for the PD.
+    ``vega sil run``): every requirement of Table 3.1 passes, and every health check except
+    the wall-clock ones (:data:`WALL_CLOCK_CHECKS`). Until that table exists: flown with the
+    PD fixture, each requirement passes or fails exactly as on the in-process run of the same
+    scenario — Table 3.1 itself is not asserted for the PD. Either way the exit status is the
+    report's verdict.
     """
     from vega_sil.commands.sil import default_table_path
 
     installed = default_table_path()
     table = installed if installed.is_file() else pd_table
     result = vega_sil_run(["--scenario", "thesis", "--table", table, "--out", tmp_path])
+    assert result.returncode in (0, 1), result.stdout + result.stderr
+    assert "flew 80 s in" in result.stderr
+    report = _report_of(tmp_path)
+    assert result.returncode == (0 if report["passed"] else 1)
+    assert ("verdict: PASS" if report["passed"] else "verdict: FAIL") in result.stdout
+    passed = {r["key"]: r["passed"] for r in report["requirements"]}
     if installed.is_file():
-        assert result.returncode == 0, result.stdout + result.stderr
+        assert all(passed.values()), result.stdout
     else:
         reference = run_scenario("thesis", pd_table).metrics()
-        assert result.returncode == (0 if reference.passed else 1), (result.stdout
-                                                                     + result.stderr)
-    assert "flew 80 s in" in result.stderr
-    assert ("verdict: PASS" if result.returncode == 0 else "verdict: FAIL") in result.stdout
+        assert passed == {r.key: r.passed for r in reference.results}
+    assert all(h["passed"] for h in report["health"]
+               if h["key"] not in WALL_CLOCK_CHECKS), result.stdout
