@@ -81,3 +81,24 @@ def test_axial_coefficient_shape(aero):
     assert np.all(c_a > 0.0)
     assert mach[np.argmax(c_a)] == pytest.approx(1.2)
     assert aero.c_a(10.0) == aero.c_a(6.0)
+
+
+def test_scalar_tables_equal_numpy_interp_bit_for_bit(aero):
+    """The plant's plain-float tables give numpy.interp's numbers exactly: inside segments, on
+    and next to every breakpoint, outside the table, and through a kept segment."""
+    cn_alpha, c_a = aero.scalar_tables()
+    rng = np.random.default_rng(3)
+    breaks = np.concatenate([aero._axial_mach, aero._normal_mach])
+    points = np.concatenate([rng.uniform(-1.0, 9.0, 20000), breaks,
+                             np.nextafter(breaks, -np.inf), np.nextafter(breaks, np.inf)])
+    for table, numpy_version in ((cn_alpha, aero.cn_alpha), (c_a, aero.c_a)):
+        for m in points.tolist():
+            want = float(numpy_version(m))
+            assert table(m) == want
+            lo, hi, slope, x0, y0 = table.segment(m)
+            inside = m + 1e-9
+            if lo < inside < hi:
+                assert slope * (inside - x0) + y0 == float(numpy_version(inside))
+    assert math.isnan(c_a(float("nan")))
+    lo, hi, *_ = c_a.segment(float("nan"))
+    assert not lo < 1.0 < hi

@@ -79,3 +79,28 @@ def test_nozzle_rate_enters_only_quadratically():
         p, x0, [0.05, 0.0, 0.0, 0.0])
     expected = p.nozzle_mass_kg * p.nozzle_lever_m * np.sin(0.05) / p.mass_kg
     assert g[3] == pytest.approx(expected, rel=1e-9)
+
+
+@pytest.mark.parametrize("t", (0.5, 30.0, 47.13, 90.0))
+def test_rk4_step_is_the_array_rk4_bit_for_bit(t):
+    """The plant's plain-float RK4 step (NonlinearModel.rk4_step) gives exactly the numbers of
+    the textbook RK4 on arrays of nonlinear_derivatives, over steps whose Mach leaves the
+    segment of the parameters' own Mach (large drift rates and winds)."""
+    from vega_plant.dynamics import NonlinearModel
+
+    p = model_parameters(t)
+    model = NonlinearModel(p)
+    rng = np.random.default_rng(int(t * 100))
+    x = np.array([0.02, -0.01, 5.0, 3.0, 1e-3, -2e-3, 0.05, -0.04])
+    h = 1e-3
+    for _ in range(50):
+        u = (float(rng.normal(0, 0.05)), float(rng.normal(0, 20.0)),
+             float(rng.normal(0, 40.0)), float(rng.normal(0, 0.5)))
+        k1 = nonlinear_derivatives(p, x, u)
+        k2 = nonlinear_derivatives(p, x + 0.5 * h * k1, u)
+        k3 = nonlinear_derivatives(p, x + 0.5 * h * k2, u)
+        k4 = nonlinear_derivatives(p, x + h * k3, u)
+        want = x + h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
+        got = model.rk4_step(tuple(x.tolist()), u, h)
+        assert got == tuple(want.tolist())
+        x = want

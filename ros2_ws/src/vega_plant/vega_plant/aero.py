@@ -20,16 +20,71 @@ aerodynamics, with every number in ``data/vehicle.yaml`` (section ``aerodynamics
   drag of the zero-lift gravity turn), docs/TRAJECTORY.md §4 and §6.
 
 Outside a table's Mach range the end value is held (``numpy.interp``). All functions accept
-scalars or arrays and broadcast like numpy.
+scalars or arrays and broadcast like numpy; :meth:`Aerodynamics.scalar_tables` gives plain-float
+versions of C_Nα(M) and C_A(M) for the nonlinear plant's inner loop (same numbers bit for bit,
+:class:`ScalarTable`).
 """
 
 from __future__ import annotations
+
+from bisect import bisect_right
 
 import numpy as np
 
 from .vehicle_data import VehicleData
 
-__all__ = ["Aerodynamics"]
+__all__ = ["Aerodynamics", "ScalarTable"]
+
+
+class ScalarTable:
+    """Piecewise-linear table y(x) for one float at a time, bit-identical to ``numpy.interp``.
+
+    ``numpy.interp`` costs ≈ 2.5 µs per scalar call (array conversion); this costs ≈ 0.3 µs.
+    Same arithmetic as numpy's C kernel: the end values are held outside [x_0, x_last], a
+    breakpoint returns its own y, otherwise ``slope·(x − x_j) + y_j`` with
+    ``slope = (y_j+1 − y_j)/(x_j+1 − x_j)`` (tests/test_aero.py compares the two).
+
+    Parameters
+    ----------
+    x, y
+        Breakpoints (strictly increasing) and values.
+    """
+
+    __slots__ = ("_x", "_y", "_slopes")
+
+    def __init__(self, x, y):
+        self._x = [float(v) for v in np.asarray(x, dtype=float).ravel()]
+        self._y = [float(v) for v in np.asarray(y, dtype=float).ravel()]
+        if len(self._x) != len(self._y) or not self._x:
+            raise ValueError("table needs as many values as breakpoints, at least one")
+        self._slopes = [(self._y[j + 1] - self._y[j]) / (self._x[j + 1] - self._x[j])
+                        for j in range(len(self._x) - 1)]
+
+    def __call__(self, v: float) -> float:
+        """y(v) [float]; NaN for a NaN argument."""
+        xs = self._x
+        if v >= xs[-1]:
+            return self._y[-1]
+        if v <= xs[0]:
+            return self._y[0]
+        if v != v:   # NaN
+            return v
+        j = bisect_right(xs, v) - 1
+        if xs[j] == v:
+            return self._y[j]
+        return self._slopes[j] * (v - xs[j]) + self._y[j]
+
+    def segment(self, v: float) -> tuple[float, float, float, float, float]:
+        """``(x_j, x_j+1, slope, x_j, y_j)`` of the segment that holds ``v``: for every u with
+        x_j < u < x_j+1, ``slope·(u − x_j) + y_j`` is exactly ``self(u)``, so a caller may
+        keep the segment and skip the search while its argument stays inside (open bounds).
+        Outside the breakpoints (or NaN) the bounds are (+inf, −inf): no u is inside."""
+        xs = self._x
+        if not xs[0] <= v < xs[-1]:
+            inf = float("inf")
+            return inf, -inf, 0.0, 0.0, 0.0
+        j = bisect_right(xs, v) - 1
+        return xs[j], xs[j + 1], self._slopes[j], xs[j], self._y[j]
 
 
 class Aerodynamics:
@@ -58,6 +113,7 @@ class Aerodynamics:
         self.crossflow_coefficient = float(
             vehicle["aerodynamics.crossflow.eta"] * vehicle["aerodynamics.crossflow.c_dc"]
             * vehicle["aerodynamics.crossflow.planform_area_m2"] / self.s_ref_m2)
+        self._scalar: tuple[ScalarTable, ScalarTable] | None = None
 
     def c_a(self, mach):
         """Axial-force coefficient at zero incidence, C_A(M) [1] (thesis Eq. 2.13, body axes)."""
@@ -70,6 +126,15 @@ class Aerodynamics:
     def x_cp(self, mach):
         """Centre of pressure, distance from the vehicle base, x_CP(M) [m] (thesis Eq. 2.17)."""
         return np.interp(mach, self._normal_mach, self._x_cp)
+
+    def scalar_tables(self) -> tuple[ScalarTable, ScalarTable]:
+        """Plain-float C_Nα(M) [1/rad] and C_A(M) [1]: the same numbers as :meth:`cn_alpha`
+        and :meth:`c_a` for one float at a time, ≈ 8× faster (the nonlinear plant calls them
+        at every RK4 stage)."""
+        if self._scalar is None:
+            self._scalar = (ScalarTable(self._normal_mach, self._cn_alpha),
+                            ScalarTable(self._axial_mach, self._c_a))
+        return self._scalar
 
     def cn(self, alpha_rad, mach):
         """Normal-force coefficient C_N(α, M) [1] (thesis Eq. 2.16; Jorgensen's form).

@@ -28,8 +28,8 @@ from .parameters import ModelParameters
 
 __all__ = [
     "STATES", "INPUTS", "OUTPUTS", "NONLINEAR_INPUTS",
-    "linear_model", "nonlinear_derivatives", "nonlinear_outputs", "ins_outputs",
-    "angle_of_attack",
+    "linear_model", "nonlinear_derivatives", "NonlinearModel", "nonlinear_outputs",
+    "ins_outputs", "angle_of_attack",
 ]
 
 STATES = ("theta_rad", "theta_dot_radps", "z_m", "z_dot_mps",
@@ -154,52 +154,150 @@ def nonlinear_derivatives(p: ModelParameters, x, u) -> np.ndarray:
 
     Notes
     -----
+    The equations are :class:`NonlinearModel` (one implementation, in plain floats, which the
+    plant's RK4 integrator calls directly); this is its derivative as an array.
+    """
+    return np.array(NonlinearModel(p).derivatives(x, u))
+
+
+class NonlinearModel:
+    """The nonlinear pitch-plane model at one parameter set, in plain float arithmetic.
+
+    Parameters
+    ----------
+    p
+        Model parameters (held for the model's life; build one model per parameter set).
+
+    Notes
+    -----
     Forces in body axes (docs/MODEL.md §2): thrust T at the pivot along the nozzle, whose
     angle to the rigid-body axis is β' = β − Σ Ψr_i q_i and whose application point is
-    displaced by Σ Ψt_i q_i; normal force N = Q S C_N(α, M) and axial force
-    Q S C_A(M) at the CP; the nozzle's reaction force −m_N·a_NozzleCG and moment −J_N β̈
-    at the pivot. The drift equation is written along the reference normal: gravity
-    acts identically on the vehicle and on the reference point and cancels.
+    displaced by Σ Ψt_i q_i; normal force N = Q S C_N(α, M) (C_N of
+    :meth:`vega_plant.aero.Aerodynamics.cn`) and axial force Q S C_A(M) at the CP, Q and M of
+    the actual airspeed there; the nozzle's reaction force −m_N·a_NozzleCG and moment −J_N β̈
+    at the pivot. The drift equation is written along the reference normal: gravity acts
+    identically on the vehicle and on the reference point and cancels.
+
+    Speed without a change of numbers: the parameter products are formed once per parameter
+    set and the input-only terms (nozzle reaction, β̈ terms) once per set of held inputs, each
+    with the same floating-point operations in the same order as the plain formulas, and the
+    Mach tables are read with :class:`vega_plant.aero.ScalarTable` (bit-identical to
+    ``numpy.interp``). One RK4 stage costs ≈ 3 µs instead of ≈ 20 µs with numpy scalars.
     """
-    theta, theta_dot, _z, z_dot, q1, q2, q1d, q2d = (float(v) for v in x)
-    beta, beta_dd, wind = float(u[0]), float(u[1]), float(u[2])
-    beta_d = float(u[3]) if len(u) > 3 else 0.0
-    T, m, J = p.thrust_n, p.mass_kg, p.jyy_kgm2
-    lc, d = p.l_cg_pvp_m, p.l_cp_m
-    mn, ln, jn = p.nozzle_mass_kg, p.nozzle_lever_m, p.nozzle_inertia_kgm2
-    tp, rp = p.psi_t_pvp, p.psi_r_pvp
-    w1, w2 = p.omega_radps
 
-    alpha, airspeed = _airflow(p, theta, theta_dot, z_dot, wind)
-    mach = airspeed / p.sound_speed_mps
-    qbar_s = 0.5 * p.rho_kgpm3 * airspeed * airspeed * p.s_ref_m2
-    normal = qbar_s * float(p.aero.cn(alpha, mach))
-    axial = qbar_s * float(p.aero.c_a(mach))
+    __slots__ = ("p", "_inputs", "_rates")
 
-    beta_eff = beta - (rp[0] * q1 + rp[1] * q2)
-    offset = tp[0] * q1 + tp[1] * q2
-    sb, cb = math.sin(beta), math.cos(beta)
-    # nozzle reaction at the pivot (nozzle CG l_N behind the pivot, rotated by β)
-    fnx = -mn * ln * (beta_dd * sb + beta_d * beta_d * cb)
-    fnz = -mn * ln * (beta_dd * cb - beta_d * beta_d * sb)
-    fx = T * math.cos(beta_eff) - axial + fnx
-    fz = -T * math.sin(beta_eff) - normal + fnz
-    moment = (d * normal
-              + T * math.cos(beta_eff) * offset - lc * T * math.sin(beta_eff)
-              - jn * beta_dd + lc * fnz)
-    st, ct = math.sin(theta), math.cos(theta)
-    # generalised modal forces (thesis Eq. 2.28 terms, β through the actual angle)
-    modal = -T * sb + fnz
-    return np.array([
-        theta_dot,
-        moment / J,
-        z_dot,
-        (-fx * st + fz * ct) / m,
-        q1d,
-        q2d,
-        -w1 * w1 * q1 - 2.0 * p.zeta * w1 * q1d + tp[0] * modal + jn * rp[0] * beta_dd,
-        -w2 * w2 * q2 - 2.0 * p.zeta * w2 * q2d + tp[1] * modal + jn * rp[1] * beta_dd,
-    ])
+    def __init__(self, p: ModelParameters):
+        self.p = p
+        T, m, J = p.thrust_n, p.mass_kg, p.jyy_kgm2
+        lc, d = p.l_cg_pvp_m, p.l_cp_m
+        mn, ln, jn = p.nozzle_mass_kg, p.nozzle_lever_m, p.nozzle_inertia_kgm2
+        tp0, tp1 = p.psi_t_pvp
+        rp0, rp1 = p.psi_r_pvp
+        w1, w2 = p.omega_radps
+        v, a, s_ref = p.v_mps, p.sound_speed_mps, p.s_ref_m2
+        half_rho = 0.5 * p.rho_kgpm3
+        cn_alpha, c_a = p.aero.scalar_tables()
+        k_cf = p.aero.crossflow_coefficient
+        neg_mn_ln = -mn * ln
+        neg_t, lc_t = -T, lc * T
+        jn_rp0, jn_rp1 = jn * rp0, jn * rp1
+        mode1_q, mode1_qd = -w1 * w1, 2.0 * p.zeta * w1
+        mode2_q, mode2_qd = -w2 * w2, 2.0 * p.zeta * w2
+        sin, cos, atan2, hypot = math.sin, math.cos, math.atan2, math.hypot
+        # the Mach-table segments in use (ScalarTable.segment): Mach changes slowly, so the
+        # search runs only when it leaves a segment
+        n_lo, n_hi, n_slope, n_x, n_y = cn_alpha.segment(p.mach)
+        a_lo, a_hi, a_slope, a_x, a_y = c_a.segment(p.mach)
+
+        def inputs(beta, beta_dd, wind, beta_d):
+            """The terms that depend on the inputs only."""
+            sb, cb = sin(beta), cos(beta)
+            # nozzle reaction at the pivot (nozzle CG l_N behind the pivot, rotated by β)
+            fnx = neg_mn_ln * (beta_dd * sb + beta_d * beta_d * cb)
+            fnz = neg_mn_ln * (beta_dd * cb - beta_d * beta_d * sb)
+            # generalised modal force (thesis Eq. 2.28 terms, β through the actual angle)
+            modal = neg_t * sb + fnz
+            return (wind, beta, fnx, fnz, jn * beta_dd, lc * fnz, modal,
+                    jn_rp0 * beta_dd, jn_rp1 * beta_dd)
+
+        def rates(theta, theta_dot, z_dot, q1, q2, q1d, q2d, i):
+            """θ̈, z̈, q̈1, q̈2 at one state for the input terms ``i``."""
+            nonlocal n_lo, n_hi, n_slope, n_x, n_y, a_lo, a_hi, a_slope, a_x, a_y
+            wind, beta, fnx, fnz, jn_bdd, lc_fnz, modal, in1, in2 = i
+            # airflow at the CP (thesis Eqs. 2.9-2.10): air-relative velocity in the
+            # reference frame (x along, z normal), then in body axes (u along the body axis)
+            st, ct = sin(theta), cos(theta)
+            vx = v - theta_dot * d * st
+            vz = z_dot - wind - theta_dot * d * ct
+            alpha = atan2(vx * st + vz * ct, vx * ct - vz * st)
+            airspeed = hypot(vx, vz)
+            mach = airspeed / a
+            qbar_s = half_rho * airspeed * airspeed * s_ref
+            if n_lo < mach < n_hi:
+                cna = n_slope * (mach - n_x) + n_y
+            else:
+                cna = cn_alpha(mach)
+                n_lo, n_hi, n_slope, n_x, n_y = cn_alpha.segment(mach)
+            if a_lo < mach < a_hi:
+                ca = a_slope * (mach - a_x) + a_y
+            else:
+                ca = c_a(mach)
+                a_lo, a_hi, a_slope, a_x, a_y = c_a.segment(mach)
+            sa = sin(alpha)
+            normal = qbar_s * (cna * sa * cos(alpha) + k_cf * sa * abs(sa))
+            axial = qbar_s * ca
+            beta_eff = beta - (rp0 * q1 + rp1 * q2)
+            offset = tp0 * q1 + tp1 * q2
+            ce, se = cos(beta_eff), sin(beta_eff)
+            fx = T * ce - axial + fnx
+            fz = neg_t * se - normal + fnz
+            moment = d * normal + T * ce * offset - lc_t * se - jn_bdd + lc_fnz
+            return (moment / J,
+                    (-fx * st + fz * ct) / m,
+                    mode1_q * q1 - mode1_qd * q1d + tp0 * modal + in1,
+                    mode2_q * q2 - mode2_qd * q2d + tp1 * modal + in2)
+
+        self._inputs, self._rates = inputs, rates
+
+    def derivatives(self, x, u) -> tuple[float, ...]:
+        """State derivative at ``x`` (order :data:`STATES`) for inputs ``u``
+        (:data:`NONLINEAR_INPUTS`; β̇ defaults to 0) as a tuple of floats."""
+        theta, theta_dot, _z, z_dot, q1, q2, q1d, q2d = (float(v) for v in x)
+        i = self._inputs(float(u[0]), float(u[1]), float(u[2]),
+                         float(u[3]) if len(u) > 3 else 0.0)
+        tdd, zdd, q1dd, q2dd = self._rates(theta, theta_dot, z_dot, q1, q2, q1d, q2d, i)
+        return (theta_dot, tdd, z_dot, zdd, q1d, q2d, q1dd, q2dd)
+
+    def rk4_step(self, x: tuple, u: tuple, h: float) -> tuple[float, ...]:
+        """One classical RK4 step of length ``h`` [s] from state ``x`` (8 floats) with the
+        inputs ``u = (β, β̈, v_w, β̇)`` held over the step; returns the new state.
+
+        The same arithmetic, element by element, as ``k1 = f(x); k2 = f(x + h/2·k1); …;
+        x + h/6·(k1 + 2(k2 + k3) + k4)`` on numpy arrays.
+        """
+        rates = self._rates
+        i = self._inputs(*u)
+        h2, h6 = 0.5 * h, h / 6.0
+        th, thd, z, zd, q1, q2, q1d, q2d = x
+        a1, b1, c1, d1 = rates(th, thd, zd, q1, q2, q1d, q2d, i)
+        th2, thd2, zd2 = th + h2 * thd, thd + h2 * a1, zd + h2 * b1
+        q12, q22, q1d2, q2d2 = q1 + h2 * q1d, q2 + h2 * q2d, q1d + h2 * c1, q2d + h2 * d1
+        a2, b2, c2, d2 = rates(th2, thd2, zd2, q12, q22, q1d2, q2d2, i)
+        th3, thd3, zd3 = th + h2 * thd2, thd + h2 * a2, zd + h2 * b2
+        q13, q23, q1d3, q2d3 = q1 + h2 * q1d2, q2 + h2 * q2d2, q1d + h2 * c2, q2d + h2 * d2
+        a3, b3, c3, d3 = rates(th3, thd3, zd3, q13, q23, q1d3, q2d3, i)
+        th4, thd4, zd4 = th + h * thd3, thd + h * a3, zd + h * b3
+        q14, q24, q1d4, q2d4 = q1 + h * q1d3, q2 + h * q2d3, q1d + h * c3, q2d + h * d3
+        a4, b4, c4, d4 = rates(th4, thd4, zd4, q14, q24, q1d4, q2d4, i)
+        return (th + h6 * (thd + 2.0 * (thd2 + thd3) + thd4),
+                thd + h6 * (a1 + 2.0 * (a2 + a3) + a4),
+                z + h6 * (zd + 2.0 * (zd2 + zd3) + zd4),
+                zd + h6 * (b1 + 2.0 * (b2 + b3) + b4),
+                q1 + h6 * (q1d + 2.0 * (q1d2 + q1d3) + q1d4),
+                q2 + h6 * (q2d + 2.0 * (q2d2 + q2d3) + q2d4),
+                q1d + h6 * (c1 + 2.0 * (c2 + c3) + c4),
+                q2d + h6 * (d1 + 2.0 * (d2 + d3) + d4))
 
 
 def ins_outputs(p: ModelParameters, x) -> np.ndarray:

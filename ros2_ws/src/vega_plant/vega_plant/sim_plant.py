@@ -30,7 +30,7 @@ from typing import Mapping, NamedTuple, Sequence
 
 import numpy as np
 
-from vega_plant.dynamics import (STATES, angle_of_attack, linear_model, nonlinear_derivatives,
+from vega_plant.dynamics import (STATES, NonlinearModel, angle_of_attack, linear_model,
                                  nonlinear_outputs)
 from vega_plant.parameters import ModelContext, ModelParameters
 from vega_plant.vehicle_data import VehicleData
@@ -179,6 +179,7 @@ class ParameterTrack:
             parameters_at(context, t_start_ms + refresh_ms * e, self.deviations)
             for e in range(n))
         self._linear: LinearFrames | None = None
+        self._nonlinear: list[NonlinearModel | None] = [None] * n
 
     @property
     def n_frames(self) -> int:
@@ -192,6 +193,13 @@ class ParameterTrack:
     def at_ms(self, t_ms: int) -> ModelParameters:
         """Parameters in force at ``t_ms``."""
         return self.params[(t_ms - self.t_start_ms) // self.refresh_ms]
+
+    def nonlinear_model(self, e: int) -> NonlinearModel:
+        """The nonlinear model of parameter entry ``e`` (built on first use, then shared)."""
+        model = self._nonlinear[e]
+        if model is None:
+            model = self._nonlinear[e] = NonlinearModel(self.params[e])
+        return model
 
     def linear_frames(self) -> LinearFrames:
         """The linear plant's frame maps (computed once, then shared).
@@ -366,7 +374,7 @@ class PlantNode:
         The wind source (stepped here, once per physics step).
     model
         ``"linear"`` (exact ZOH of the frozen-time linear model per step) or ``"nonlinear"``
-        (:func:`vega_plant.dynamics.nonlinear_derivatives`, classical RK4 per step).
+        (:class:`vega_plant.dynamics.NonlinearModel`, classical RK4 per step).
     x0
         Initial state in :data:`vega_plant.dynamics.STATES` order.
     beta0_rad
@@ -450,21 +458,17 @@ class PlantNode:
             self._x = self._linear.H[f] @ np.array(xu)
         else:
             track = self.track
-            params, t0, refresh = track.params, track.t_start_ms, track.refresh_ms
-            h, h2, h6 = self._dt_s, 0.5 * self._dt_s, self._dt_s / 6.0
-            x = self._x
+            model_at, t0, refresh, dt_ms = (track.nonlinear_model, track.t_start_ms,
+                                            track.refresh_ms, track.dt_ms)
+            h = self._dt_s
+            x = tuple(self._x.tolist())
             t = self._t_ms
             for k in range(steps):
-                b1, r1 = deflection_samples_rad[k], rate_samples_radps[k]
+                b1, r1 = float(deflection_samples_rad[k]), float(rate_samples_radps[k])
                 u = (0.5 * (b0 + b1), (r1 - r0) * inv_dt, winds[k], 0.5 * (r0 + r1))
                 b0, r0 = b1, r1
-                p = params[(t + k * track.dt_ms - t0) // refresh]
-                k1 = nonlinear_derivatives(p, x, u)
-                k2 = nonlinear_derivatives(p, x + h2 * k1, u)
-                k3 = nonlinear_derivatives(p, x + h2 * k2, u)
-                k4 = nonlinear_derivatives(p, x + h * k3, u)
-                x = x + h6 * (k1 + 2.0 * (k2 + k3) + k4)
-            self._x = x
+                x = model_at((t + k * dt_ms - t0) // refresh).rk4_step(x, u, h)
+            self._x = np.array(x)
         self._beta, self._rate = b0, r0
         self._t_ms += self.track.frame_ms
         self._seq += 1
