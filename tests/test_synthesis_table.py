@@ -57,8 +57,10 @@ def test_recorded_gammas_and_rate_box(table, context):
     assert table.rate_grid_mps2[0] <= lo and table.rate_grid_mps2[1] >= hi
     np.testing.assert_allclose(table.grid_v_mps,
                                [context.parameters(t).v_mps for t in GRID_TIMES_S], rtol=1e-9)
-    # each frozen-point LTI optimum is a lower bound of the LPV level
+    # γ ordering (LPV_SYNTHESIS.md §5): each frozen-point LTI optimum is a lower bound of the
+    # rate-bounded level (the box contains ρ̇ = 0), which is no worse than the quadratic one
     assert max(table.metadata["gamma_lti"]) <= table.gamma_min * (1.0 + 1e-6)
+    assert table.gamma_min <= table.metadata["gamma_quadratic"]
 
 
 @pytest.mark.parametrize("t_s", (10.0, 37.0, 64.0, 90.0))

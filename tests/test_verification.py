@@ -9,7 +9,7 @@ import pytest
 from offline_synthesis.gridded_plant import GriddedPlant
 from offline_synthesis.interconnection import weighted_plant
 from offline_synthesis.lpv_synthesis import synthesize
-from offline_synthesis.pipeline import grid_times, rate_bounds_from_trajectory
+from offline_synthesis.pipeline import grid_times, rate_bounds_from_trajectory, rate_box
 from offline_synthesis.verification import frozen_point_sweep, loop_margins, time_at_velocity
 from offline_synthesis.weights import SHIPPED
 from vega_plant.parameters import default_context
@@ -32,6 +32,15 @@ def test_rate_bounds_like_the_thesis():
     assert hi == pytest.approx(36.4, rel=0.03)
 
 
+def test_rate_box():
+    """Default box adds ρ̇ = 0 (frozen operation) to the trajectory's all-positive bounds."""
+    assert rate_box((3.36, 35.83)) == (0.0, 35.83)
+    assert rate_box((3.36, 35.83), "thesis") == (3.36, 35.83)
+    assert rate_box((-2.0, 35.83)) == (-2.0, 35.83)
+    with pytest.raises(ValueError, match="--rate-box 'x': expected one of with_frozen, thesis"):
+        rate_box((3.36, 35.83), "x")
+
+
 def test_grids_and_time_map():
     ctx = default_context()
     assert list(grid_times("thesis", ctx)) == [10, 20, 30, 40, 50, 60, 70, 80, 90]
@@ -41,7 +50,10 @@ def test_grids_and_time_map():
     assert np.allclose(np.diff(v), np.diff(v)[0], rtol=1e-3)        # evenly spaced in velocity
     assert time_at_velocity(np.interp(47.0, ctx.conditions.t_s, ctx.conditions.column("v_mps")),
                             ctx) == pytest.approx(47.0, abs=1e-6)
-    with pytest.raises(ValueError, match="expected one of thesis, full"):
+    refined = grid_times("refined", ctx)
+    assert set(grid_times("thesis", ctx)) <= set(refined) and np.all(np.diff(refined) > 0)
+    assert {72.0, 74.0, 82.0} <= set(refined) and refined[0] == 10 and refined[-1] == 90
+    with pytest.raises(ValueError, match="expected one of thesis, refined, full"):
         grid_times("dense", ctx)
 
 

@@ -59,12 +59,13 @@ _SOLVER_OPTIONS = {
 }
 
 
-# Clarabel's static KKT regularisation for a second attempt after a solver error (default
+# Clarabel's static KKT regularisation for further attempts after a solver error (default
 # 1e-8): with the default, multi-point problems of the 19-state VEGA plant stopped at
 # iteration 1 with a numerical error (KKT factorisation) — for some pairs of grid points and
 # for all nine; 1e-6 solves them. It is not the default because it costs accuracy: the
 # single-point LMI then lands 1.0–1.6 % above sb10ad at t = 70–90 s instead of within 1 %.
-_CLARABEL_RETRY_REGULARISATION = 1e-6
+# A failed attempt stops within a few iterations, so the ladder is cheap.
+_CLARABEL_RETRY_REGULARISATIONS = (1e-6, 1e-5)
 
 
 class SynthesisError(ValueError):
@@ -323,7 +324,7 @@ def _solve(problem, solver, layout):
     9 points match sb10ad within 1.1 %); single-threaded for small plants (n < 12), where
     threads do not pay and only add to the contention on a loaded two-core machine. After a
     Clarabel solver error one more attempt is made with a larger static KKT regularisation
-    (``_CLARABEL_RETRY_REGULARISATION``).
+    (``_CLARABEL_RETRY_REGULARISATIONS``).
     """
     options = dict(_SOLVER_OPTIONS.get(solver, {}))
     retries = []
@@ -331,7 +332,8 @@ def _solve(problem, solver, layout):
         options["equilibrate_enable"] = not layout.riccati_balanced
         if layout.points[0].n_x < 12:
             options["max_threads"] = 1
-        retries = [dict(options, static_regularization_constant=_CLARABEL_RETRY_REGULARISATION)]
+        retries = [dict(options, static_regularization_constant=value)
+                   for value in _CLARABEL_RETRY_REGULARISATIONS]
     for attempt in [options] + retries:
         try:
             with warnings.catch_warnings():
