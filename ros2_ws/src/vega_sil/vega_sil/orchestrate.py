@@ -75,7 +75,7 @@ works: the start barrier waits)."""
 
 DEFAULT_BARRIER_TIMEOUT_S = 60.0
 """Start-barrier timeout [s]: long enough for five Python processes to import and set up on
-a loaded 2-core machine (≈ 3–10 s measured) plus a slow DDS discovery (up to ≈ 3 s,
+a loaded 2-core machine (2–3 s measured, up to 20 s under heavy load) plus a slow DDS discovery (up to ≈ 3 s,
 ENVIRONMENT.md); a node that is missing after it fails the run and is named."""
 
 TERM_GRACE_S = 5.0
