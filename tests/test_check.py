@@ -189,6 +189,16 @@ def test_truncated_run_fails_coverage(run, tmp_path):
     assert _failed(check) == {"coverage"}
 
 
+def test_missing_clock_tick_fails_coverage(run, tmp_path):
+    """/clock is checked against its schedule (every 10 frames and t_end), tick by tick."""
+    def mutate(messages):
+        del messages[messages_on(messages, topics.CLOCK.name)[3]]
+    check = _check(tmp_path, run, mutate)
+    assert _failed(check) == {"coverage"}
+    detail = next(h.detail for h in check.health if h.key == "coverage")
+    assert "/clock:" in detail
+
+
 # ----------------------------------------------------------------------------- bad input
 def test_bad_bags_are_one_line_exit_2(good_bag, tmp_path, capsys):
     import shutil

@@ -100,8 +100,10 @@ def test_schedule_counts_and_actuator_needs():
     info = RunInfo("x", 1, 10_000, 11_000, LoopTiming()).check()
     assert info.n_frames == 100
     assert list(info.command_samples())[:3] == [10_000, 10_020, 10_040]
-    assert info.expected_counts() == {"/vega/truth": 101, "/clock": 101, "/vega/ins": 100,
+    assert info.expected_counts() == {"/vega/truth": 101, "/clock": 11, "/vega/ins": 100,
                                       "/vega/tvc_cmd": 50, "/vega/actuator": 100}
+    assert info.clock_frames() == list(range(0, 101, 10))
+    assert RunInfo("x", 1, 0, 1_050, LoopTiming()).clock_frames()[-3:] == [90, 100, 105]
     # command of sample s applies at s + 39 ms; frame k integrates steps t_k … t_k + 9 ms
     needed = [info.commands_needed(k) for k in range(info.n_frames)]
     for k, n in enumerate(needed):

@@ -38,7 +38,10 @@ Additions to the contract first agreed (other helpers: read this):
   DDS acknowledgements).
 * ``stall_timeout_s`` parameter (above).
 * ``/clock`` is published RELIABLE with depth :data:`vega_bus.topics.DATA_QUEUE_DEPTH` (not 1),
-  so that a lagging recorder loses no tick.
+  so that a lagging recorder loses no tick, at 10 Hz, not at every frame: a tick at every
+  :data:`vega_bus.schedule.CLOCK_EVERY_FRAMES`-th frame start and at t_end
+  (:meth:`RunInfo.clock_frames`, also the recorder's expected count); tools need sim time,
+  the lockstep runs on the stamps, and a tick per frame cost ≈ 8 % of the SIL's CPU.
 * Every participant, not only the plant, waits until it holds ``/vega/ready`` from all
   participants before its first data message (the actuator needs no input for its first
   frames and would otherwise publish before the plant listens). Nodes that time out exit 1

@@ -49,7 +49,7 @@ TRUTH = Topic("/vega/truth", "vega_msgs/msg/VehicleState", "plant", 100.0)
 INS = Topic("/vega/ins", "vega_msgs/msg/InsMeasurement", "ins_sensor", 100.0)
 TVC_CMD = Topic("/vega/tvc_cmd", "vega_msgs/msg/TvcCommand", "tvc_controller", 50.0)
 ACTUATOR = Topic("/vega/actuator", "vega_msgs/msg/ActuatorState", "tvc_actuator", 100.0)
-CLOCK = Topic("/clock", "rosgraph_msgs/msg/Clock", "plant", 100.0)
+CLOCK = Topic("/clock", "rosgraph_msgs/msg/Clock", "plant", 10.0)   # vega_bus.schedule
 
 DATA_TOPICS = (TRUTH, INS, TVC_CMD, ACTUATOR)
 ALL_TOPICS = DATA_TOPICS + (CLOCK,)

@@ -5,8 +5,9 @@ Each node builds its step object exactly as the in-process simulation does
 (:mod:`vega_bus.topics`), in the lockstep of :mod:`vega_bus.schedule`:
 
 * ``plant`` (time master): publishes the run description on ``/vega/run``, waits for the start
-  barrier, then for k = 0 … n: truth(t_k) on ``/vega/truth`` and /clock = t_k, then waits for
-  the actuator's frame k and integrates it (:class:`vega_plant.sim_plant.PlantNode`).
+  barrier, then for k = 0 … n: truth(t_k) on ``/vega/truth`` (and /clock = t_k on the frames
+  of :meth:`RunInfo.clock_frames`), then waits for the actuator's frame k and integrates it
+  (:class:`vega_plant.sim_plant.PlantNode`).
   ``realtime: true`` paces the frames to the wall clock.
 * ``ins_sensor``: each truth(t_k), k < n → one measurement
   (:class:`vega_plant.sim_nodes.InsNode`; model parameters :func:`parameters_at`).
@@ -104,6 +105,7 @@ def _plant(shell: Shell) -> None:
     msg, clock = VehicleState(), Clock()
     msg.header.frame_id = "base_link"
     n, frame_ms = info.n_frames, info.timing.frame_ms
+    ticks = set(info.clock_frames())
     wall0 = time.monotonic()
     for k in range(n + 1):
         if k - recorded.count >= RECORDER_WINDOW_FRAMES and recorded.linked():
@@ -119,8 +121,9 @@ def _plant(shell: Shell) -> None:
         msg.bending_q = t.bending_q
         msg.bending_qdot = t.bending_qdot
         truth_pub.publish(msg)
-        _stamp(clock.clock, t.stamp_ms)
-        clock_pub.publish(clock)
+        if k in ticks:
+            _stamp(clock.clock, t.stamp_ms)
+            clock_pub.publish(clock)
         if k == n:
             break
         shell.wait_until(lambda: bool(frames),

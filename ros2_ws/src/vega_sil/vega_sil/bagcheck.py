@@ -15,11 +15,13 @@ metadata        the custom metadata holds every :data:`vega_sil.bagio.REQUIRED_M
                 and the scenario YAML parses (it gives the span, the timing and β(t_start))
 finite          no NaN or inf in any floating-point field of any graph topic
 sequence        ``seq`` runs 0, 1, 2, … on every data topic (no gap, no repeat)
-lockstep        stamps advance by exactly one period per message (10 ms; commands 20 ms;
-                /clock 10 ms), log time = stamp, INS stamp = sample + sensor latency, command
+lockstep        stamps advance by exactly one period per message (10 ms; commands 20 ms),
+                log time = stamp, INS stamp = sample + sensor latency, command
                 stamp = sample + sensor + computing latency (nothing stalled or skipped)
 coverage        truth, INS, actuator and commands hold the messages of the whole span
-                [t_start, t_end], first and last stamps as :mod:`vega_bus.schedule` says
+                [t_start, t_end], first and last stamps as :mod:`vega_bus.schedule` says;
+                /clock ticks at exactly the times of ``RunInfo.clock_frames`` (every 100 ms
+                and t_end)
 compute time    every ``TvcCommand.compute_time_s`` ≤ the computing latency (12 ms budget)
 ==============  ===========================================================================
 
@@ -47,7 +49,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from vega_bus import topics
-from vega_bus.schedule import RunInfo
+from vega_bus.schedule import CLOCK_EVERY_FRAMES, RunInfo
 
 from . import bagio
 from .closed_loop import SimulationResult
@@ -393,7 +395,7 @@ def _check_sequence(bag: bagio.RunBag) -> HealthResult:
 
 def _check_lockstep(bag: bagio.RunBag, timing) -> HealthResult:
     period_ms = {topics.TRUTH.name: timing.frame_ms, topics.INS.name: timing.frame_ms,
-                 topics.ACTUATOR.name: timing.frame_ms, topics.CLOCK.name: timing.frame_ms,
+                 topics.ACTUATOR.name: timing.frame_ms,
                  topics.TVC_CMD.name: timing.controller_period_ms}
     latency_ms = {topics.INS.name: timing.sensor_latency_ms,
                   topics.TVC_CMD.name: timing.sensor_latency_ms + timing.computing_latency_ms}
@@ -406,6 +408,8 @@ def _check_lockstep(bag: bagio.RunBag, timing) -> HealthResult:
             i = int(np.argmax(stamp != cols.log_time_ns))
             problems.append(f"{name} log time {_ms(cols.log_time_ns[i])} ≠ stamp "
                             f"{_ms(stamp[i])}")
+        if name not in period_ms:     # /clock: its exact stamps are checked under coverage
+            continue
         step = np.diff(stamp)
         bad = np.flatnonzero(step != period_ms[name] * _NS_PER_MS)
         if bad.size:
@@ -457,6 +461,12 @@ def _check_coverage(bag: bagio.RunBag, ctx: RunContext) -> HealthResult:
         if (got0, got1) != (span[0] * _NS_PER_MS, span[1] * _NS_PER_MS):
             problems.append(f"{name} spans {_ms(got0)} … {_ms(got1)}, expected "
                             f"{span[0] / 1e3:.3f} s … {span[1] / 1e3:.3f} s")
+    clock = bag.topics.get(topics.CLOCK.name)
+    ticks = np.array([info.frame_start(k) for k in info.clock_frames()], dtype=np.int64)
+    got = np.zeros(0, dtype=np.int64) if clock is None else clock["stamp_ns"]
+    if got.shape != ticks.shape or not np.array_equal(got, ticks * _NS_PER_MS):
+        problems.append(f"{topics.CLOCK.name}: {got.size} ticks, not the {ticks.size} of the "
+                        f"schedule (every {CLOCK_EVERY_FRAMES} frames and t_end)")
     truth = bag[topics.TRUTH.name]["stamp_ns"]
     value = f"{truth[0] / 1e9:.3f} … {truth[-1] / 1e9:.3f} s"
     return HealthResult("coverage", "run complete", value,

@@ -1,8 +1,9 @@
 """Run bags from the in-process simulation: the real message types, serialised by rclpy.
 
 :func:`simulation_messages` turns a :class:`~vega_sil.closed_loop.SimulationResult` into the
-messages the SIL nodes publish for the same run — ``VehicleState`` and ``/clock`` at every
-frame time t_start … t_end, ``InsMeasurement`` per frame, ``TvcCommand`` per controller step,
+messages the SIL nodes publish for the same run — ``VehicleState`` at every frame time
+t_start … t_end and ``/clock`` at those of :func:`vega_bus.schedule.clock_frames`,
+``InsMeasurement`` per frame, ``TvcCommand`` per controller step,
 ``ActuatorState`` per frame with its physics-rate samples — as (topic, log time [ns], rclpy
 message) in log-time order. Tests may alter them (a NaN, a dropped message, a stalled stamp)
 before :func:`write_messages` serialises them with ``rclpy.serialization.serialize_message``
@@ -22,6 +23,7 @@ from typing import Any, Iterable, Mapping
 import yaml
 
 from vega_bus import topics
+from vega_bus.schedule import clock_frames
 from vega_bus.timing import ms_to_stamp
 
 from . import bagio
@@ -86,6 +88,7 @@ def simulation_messages(result, *, compute_time_s: float = 5e-5
 
     out: list[tuple[str, int, Any]] = []
     r = result
+    ticks = set(clock_frames(len(r.t_ms) - 1))
     for i, t_ms in enumerate(r.t_ms.tolist()):
         m = _new(VehicleState, t_ms, i)
         m.pitch_rad, m.pitch_rate_radps = float(r.theta_rad[i]), float(r.theta_dot_radps[i])
@@ -97,9 +100,10 @@ def simulation_messages(result, *, compute_time_s: float = 5e-5
         m.bending_q = r.bending_q[i].tolist()
         m.bending_qdot = r.bending_qdot[i].tolist()
         out.append((topics.TRUTH.name, t_ms * _NS_PER_MS, m))
-        c = Clock()
-        _stamp(c.clock, t_ms)
-        out.append((topics.CLOCK.name, t_ms * _NS_PER_MS, c))
+        if i in ticks:
+            c = Clock()
+            _stamp(c.clock, t_ms)
+            out.append((topics.CLOCK.name, t_ms * _NS_PER_MS, c))
     for i, t_ms in enumerate(r.ins_stamp_ms.tolist()):
         m = _new(InsMeasurement, t_ms, i, r.ins_sample_ms[i])
         m.pitch_rad, m.pitch_rate_radps = float(r.ins_theta_rad[i]), \
