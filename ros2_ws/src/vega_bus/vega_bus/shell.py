@@ -95,6 +95,9 @@ class Shell:
         self._wait_set = None
         self._waited: tuple = ()
         self.stall_timeout_s = DEFAULT_STALL_TIMEOUT_S
+        # > 0: wait_until sleeps this long after each wake-up, so that the next one takes many
+        # messages at once (for a node off the lockstep's critical path: the recorder)
+        self.batch_s = 0.0
 
     def _on_signal(self, signum, _frame) -> None:
         self.signal_name = signal.Signals(signum).name
@@ -164,6 +167,8 @@ class Shell:
             self.spin_once(0.1)
             if done():
                 return
+            if self.batch_s:
+                time.sleep(self.batch_s)
             if progress is not None:
                 now = progress()
                 if now != last:
