@@ -18,7 +18,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm
 
 from .vehicle_data import VehicleData
 
@@ -138,7 +137,11 @@ class TvcActuator:
         self.params = params
         A, B, _, _ = linear_actuator_ss(params)
         dt = params.dt_s
-        # exact ZOH: expm([[A, B], [0, 0]] dt) = [[Φ, Γ], [0, I]]
+        # exact ZOH: expm([[A, B], [0, 0]] dt) = [[Φ, Γ], [0, I]]; scipy imported here, not at
+        # module level: the plant, INS and recorder processes import this module but build no
+        # actuator, and scipy.linalg costs them ≈ 0.2 s of start-up each
+        from scipy.linalg import expm
+
         aug = np.zeros((3, 3))
         aug[:2, :2] = A
         aug[:2, 2:] = B
