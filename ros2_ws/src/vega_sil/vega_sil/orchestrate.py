@@ -546,17 +546,18 @@ class Supervisor:
             None once the barrier is complete; a failed outcome if a node ended first or the
             deadline (the nodes' timeout plus a margin) passed, naming the missing nodes.
         """
+        if watcher is None:  # not watched: the flight phase reports every failure
+            return None
         deadline = time.monotonic() + self.barrier_timeout_s + _BARRIER_MARGIN_S
         while True:
             failed = self._failed()
-            missing = [name for name in self.participants
-                       if watcher is None or name not in watcher.ready]
+            missing = [name for name in self.participants if name not in watcher.ready]
             if failed is not None:
                 message = self._failure_message(failed, "before the start barrier completed")
-                if watcher is not None and missing:
+                if missing:
                     message += f" (not ready: {', '.join(missing)})"
                 return RunOutcome("bad_input" if failed.returncode == 2 else "failed", message)
-            if watcher is None or not missing:
+            if not missing:
                 return None
             if any(p.returncode == 0 for p in self.processes):
                 # a node ends normally only after the flight: the barrier was complete even if
