@@ -232,8 +232,11 @@ def test_supervisor_failure_stops_the_others_and_names_the_node(tmp_path):
     """One node fails with its one-line error → the others are stopped (SIGTERM), the
     message names the node, its status and its last line; no process is left."""
     nodes = [_stand_in("sleeper", _SLEEPER, tmp_path),
-             _stand_in("broken", """
-                 import sys
+             _stand_in("broken", f"""
+                 import pathlib, sys, time
+                 log = pathlib.Path({str(tmp_path / "run" / "logs" / "sleeper.log")!r})
+                 while "running" not in log.read_text():  # the sleeper handles SIGTERM now
+                     time.sleep(0.01)
                  print("broken: error: table.npz: not a controller table", file=sys.stderr)
                  sys.exit(2)
              """, tmp_path)]
