@@ -280,14 +280,12 @@ def test_supervisor_node_killed_by_signal(tmp_path):
     assert outcome.message == "node 'victim' failed during the flight: killed by SIGKILL"
 
 
-def test_supervisor_interrupt_stops_everything(tmp_path):
-    """SIGINT or SIGTERM to the orchestrator (a separate process running the supervisor):
-    every node is stopped, the orchestrator exits with the interrupted outcome and no node
-    survives it."""
-    pids = tmp_path / "pids"
-    driver = tmp_path / "driver.py"
+def _driver(tmp_path, tail):
+    """A script that runs a Supervisor over two sleeper stand-ins (s0, s1) in its own
+    process, the orchestrator's place: set-up, then ``tail`` (Python using ``sup``)."""
     sleeper = tmp_path / "sleeper.py"
     sleeper.write_text(textwrap.dedent(_SLEEPER))
+    driver = tmp_path / "driver.py"
     driver.write_text(textwrap.dedent(f"""
         import os, sys
         from pathlib import Path
@@ -298,7 +296,16 @@ def test_supervisor_interrupt_stops_everything(tmp_path):
         nodes = [(orchestrate.NodeSpec("s", f"s{{i}}"), [sys.executable, {str(sleeper)!r}])
                  for i in range(2)]
         sup = orchestrate.Supervisor(nodes, layout, os.environ, watch_barrier=False)
+    """) + textwrap.dedent(tail))
+    return driver
 
+
+def test_supervisor_interrupt_stops_everything(tmp_path):
+    """SIGINT or SIGTERM to the orchestrator (a separate process running the supervisor):
+    every node is stopped, the orchestrator exits with the interrupted outcome and no node
+    survives it."""
+    pids = tmp_path / "pids"
+    driver = _driver(tmp_path, f"""
         def progress(line):
             if line.startswith("started"):
                 Path({str(pids)!r}).write_text(
@@ -307,7 +314,7 @@ def test_supervisor_interrupt_stops_everything(tmp_path):
         sup.progress = progress
         outcome = sup.run()
         print(outcome.status, outcome.returncodes["s0"], outcome.returncodes["s1"], flush=True)
-    """))
+    """)
     for sig in (signal.SIGINT, signal.SIGTERM):
         proc = subprocess.Popen([sys.executable, str(driver)], stdout=subprocess.PIPE,
                                 text=True)
@@ -330,23 +337,11 @@ def test_supervisor_interrupt_stops_everything(tmp_path):
 def test_killed_orchestrator_leaves_no_nodes(tmp_path):
     """Even SIGKILL on the orchestrator leaves no node behind: the kernel sends each node
     SIGTERM when its parent dies (PR_SET_PDEATHSIG)."""
-    sleeper = tmp_path / "sleeper.py"
-    sleeper.write_text(textwrap.dedent(_SLEEPER))
-    driver = tmp_path / "driver.py"
-    driver.write_text(textwrap.dedent(f"""
-        import os, sys
-        from pathlib import Path
-        from vega_sil import orchestrate
-
-        layout = orchestrate.RunLayout(Path({str(tmp_path / 'run')!r}))
-        layout.run_dir.mkdir()
-        nodes = [(orchestrate.NodeSpec("s", f"s{{i}}"), [sys.executable, {str(sleeper)!r}])
-                 for i in range(2)]
-        sup = orchestrate.Supervisor(nodes, layout, os.environ, watch_barrier=False)
+    driver = _driver(tmp_path, """
         sup.progress = lambda line: print(
             " ".join(str(p.popen.pid) for p in sup.processes), flush=True)
         sup.run()
-    """))
+    """)
     proc = subprocess.Popen([sys.executable, str(driver)], stdout=subprocess.PIPE, text=True)
     node_pids = [int(p) for p in proc.stdout.readline().split()]
     assert len(node_pids) == 2
