@@ -168,3 +168,32 @@ def test_malformed_inputs_raise_one_line_value_errors(plant, rate_bounded):
     _one_line_value_error(lambda: synthesize(two_points, rate_bounds=RATES))
     _one_line_value_error(lambda: certificate_check(plant, rate_bounded, [1.7], RATES))
     _one_line_value_error(lambda: certificate_check(plant, rate_bounded, RHO, RATES, "spline"))
+
+
+def test_plant_rate_term_enters_lmis_controller_and_certificate(plant):
+    """A plant ẋ = (A(ρ) + ρ̇ N) x + … (the term a ρ-dependent state transformation adds):
+    the synthesis imposes it at the rate vertices, and its certificate holds for that plant,
+    not for the plant without the term whose certificate the plain synthesis passes."""
+    N = np.zeros((3, 3))
+    N[1, 1] = -0.8                       # ρ̇ = 0.5 adds damping 0.4, ρ̇ = −0.5 removes it all
+    with_term = GriddedPlant(plant.rho, plant.A, plant.B, plant.C, plant.D, plant.n_w,
+                             plant.n_u, plant.n_e, plant.n_y, N=np.array([N] * plant.n_grid))
+    result = synthesize(with_term, rate_bounds=RATES)
+    assert result.certificate_max_eig < 0.0 and len(result.rate_A) == plant.n_grid
+    worst = certificate_check(plant_at, result, _dense(RHO), RATES, rate_term=lambda rho: N)
+    assert np.max(worst) < 0.0
+    # the plain design (term left out) is not certified for the plant with the term
+    plain = synthesize(plant, rate_bounds=RATES)
+    assert np.max(certificate_check(plant_at, plain, RHO, RATES, rate_term=lambda rho: N)) > 0.0
+    assert result.gamma > plain.gamma
+    # the controller depends on the term: at ρ̇ = 0 it is the plain plant's reconstruction
+    K0 = result.controller(RHO[2], 0.0)
+    K0_point = result.controller(RHO[2], 0.0, plant_point=plant_at(RHO[2]), rate_term=N)
+    for a, b in zip(K0, K0_point):
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)
+    K_hi = result.controller(RHO[2], 0.5)
+    K_hi_no_term = result.controller(RHO[2], 0.5, plant_point=plant_at(RHO[2]))
+    assert not np.allclose(K_hi[0], K_hi_no_term[0])
+    with pytest.raises(ValueError, match="N has shape"):
+        GriddedPlant(plant.rho, plant.A, plant.B, plant.C, plant.D, plant.n_w, plant.n_u,
+                     plant.n_e, plant.n_y, N=np.zeros((plant.n_grid, 2, 2)))

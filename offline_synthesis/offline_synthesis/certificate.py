@@ -85,7 +85,8 @@ def hinf_norm(A, B, C, D):
     return float(gpeak)
 
 
-def certificate_check(plant, result, rho_points, rate_vertices, controller="exact"):
+def certificate_check(plant, result, rho_points, rate_vertices, controller="exact",
+                      rate_term=None):
     """Largest eigenvalue of the closed-loop certificate at each (ρ, ρ̇) (LPV_SYNTHESIS.md §5).
 
     Parameters
@@ -104,6 +105,12 @@ def certificate_check(plant, result, rho_points, rate_vertices, controller="exac
     controller : {"exact", "interpolated"}
         "exact" reconstructs K(ρ, ρ̇) from X(ρ), Y(ρ) and the plant at ρ (§4); "interpolated"
         uses the linear interpolation of the grid controllers (what flight software runs).
+    rate_term : callable, optional
+        ``rate_term(ρ)`` → N(ρ) (n × n, original plant coordinates): checks the plant
+        ẋ = (A(ρ) + ρ̇ N(ρ)) x + … instead of ẋ = A(ρ) x + … — the term a ρ-dependent state
+        transformation of the model adds along a trajectory (the synthesis leaves it out;
+        verification.bending_rate_term). The controller is unchanged; the inequality stays
+        affine in ρ̇, so the rate vertices still suffice.
 
     Returns
     -------
@@ -129,9 +136,15 @@ def certificate_check(plant, result, rho_points, rate_vertices, controller="exac
         S = _block_diag(sc.T, np.eye(n_K))                       # (x, x_K) = S (x_s, x_K)
         S_inv = _block_diag(sc.T_inv, np.eye(n_K))
         for j, rho_dot in enumerate(rate_vertices):
-            K = result.controller(rho, rho_dot, plant_point=point if controller == "exact"
-                                  else None)
+            N = None if rate_term is None else rate_term(rho)
+            if controller == "exact":
+                K = result.controller(rho, rho_dot, plant_point=point, rate_term=N)
+            else:
+                K = result.controller(rho, rho_dot)
             A_cl, B_cl, C_cl, D_cl = closed_loop(point, K)
+            if N is not None:
+                A_cl = A_cl.copy()
+                A_cl[:point.n_x, :point.n_x] += rho_dot * N
             # to balanced coordinates: x = T x_s, w = d w_s, e_s = e/d
             A_s = S_inv @ A_cl @ S
             B_s = S_inv @ B_cl * sc.d

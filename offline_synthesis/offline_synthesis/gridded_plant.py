@@ -101,6 +101,10 @@ class GriddedPlant:
         (N, n, n_w+n_u), (N, n_e+n_y, n), (N, n_e+n_y, n_w+n_u).
     n_w, n_u, n_e, n_y : int
         Partition sizes of the inputs [w; u] and outputs [e; y].
+    N : array_like, optional
+        Rate term, shape (N, n, n): the plant is ẋ = (A + ρ̇ N) x + … at the grid values —
+        what a ρ-dependent state transformation of a model adds along a trajectory
+        (ρ̇ (dT⁻¹/dρ) T). None: no such term.
 
     Raises
     ------
@@ -117,9 +121,16 @@ class GriddedPlant:
     n_u: int
     n_e: int
     n_y: int
+    N: np.ndarray | None = None
 
     def __post_init__(self):
         sizes = _check_sizes(self.n_w, self.n_u, self.n_e, self.n_y)
+        if self.N is not None:
+            N = _as_float_array("N", self.N, 3)
+            if N.shape != np.shape(self.A):
+                raise PlantDataError(f"N has shape {N.shape}, expected that of A "
+                                     f"{np.shape(self.A)}")
+            object.__setattr__(self, "N", N)
         rho = _as_float_array("rho", self.rho, 1)
         if rho.size == 0:
             raise PlantDataError("rho must hold at least one grid value")

@@ -65,7 +65,7 @@ _SOLVER_OPTIONS = {
 # for all nine; 1e-6 solves them. It is not the default because it costs accuracy: the
 # single-point LMI then lands 1.0–1.6 % above sb10ad at t = 70–90 s instead of within 1 %.
 # A failed attempt stops within a few iterations, so the ladder is cheap.
-_CLARABEL_RETRY_REGULARISATIONS = (1e-6, 1e-5)
+_CLARABEL_RETRY_REGULARISATIONS = (1e-6, 1e-5, 1e-4)
 
 
 class SynthesisError(ValueError):
@@ -111,6 +111,9 @@ class LpvSynthesisResult:
         Largest certificate eigenvalue over the grid points and rate vertices (negative).
     robustness : float
         Stage-2 robustness margin τ actually used (0: plain stage 2 of §3, or no stage 2).
+    rate_A : tuple of np.ndarray
+        The plant's rate term N at the grid values in the balanced coordinates (T⁻¹ N T), or
+        empty: the plant at (ρ_i, ρ̇) is A + ρ̇ N (GriddedPlant.N).
     """
 
     gamma_min: float
@@ -129,6 +132,7 @@ class LpvSynthesisResult:
     lmi_max_eig: dict = field(default_factory=dict)
     certificate_max_eig: float = float("nan")
     robustness: float = 0.0
+    rate_A: tuple = ()
 
     def X(self, rho):
         """X(ρ) = Σ_k θ^k X_k."""
@@ -148,7 +152,7 @@ class LpvSynthesisResult:
         derivative = _values_at(self.Y_k, self.scaling.theta(rho), self.scaling.rho_half)[1]
         return np.zeros_like(self.Y_k[0]) if derivative is None else derivative
 
-    def controller(self, rho, rho_dot, plant_point=None):
+    def controller(self, rho, rho_dot, plant_point=None, rate_term=None):
         """Continuous controller (A_K, B_K, C_K, D_K), u = K y on the original channels (§4).
 
         Parameters
@@ -161,24 +165,43 @@ class LpvSynthesisResult:
             is the exact controller at a grid value or the linear interpolation, in ρ, of the
             two neighbouring grid controllers, with ρ clipped to the grid range (as in the
             thesis' simulations, LPV_SYNTHESIS.md §6).
+        rate_term : np.ndarray, optional
+            With ``plant_point``: the plant's rate term N(ρ) (original coordinates), so that
+            K is reconstructed for A + ρ̇ N as at the grid points of a plant with a rate term.
         """
         if plant_point is not None:
             if not isinstance(plant_point, PlantPoint):
                 plant_point = PlantPoint(*plant_point, *self.sizes)
-            return self._controller_at_point(self.scaling.normalise(plant_point), rho, rho_dot)
+            point = self.scaling.normalise(plant_point)
+            if rate_term is not None:
+                point = _shifted(point, rho_dot * self.scaling.T_inv @ rate_term @ self.scaling.T)
+            return self._controller_at_point(point, rho, rho_dot)
         rho = float(np.clip(rho, self.rho[0], self.rho[-1]))
         upper = int(np.searchsorted(self.rho, rho))
         if self.rho[min(upper, self.rho.size - 1)] == rho:
-            return self._controller_at_point(self.points[upper], rho, rho_dot)
+            return self._controller_at_point(self._grid_point(upper, rho_dot), rho, rho_dot)
         lower = upper - 1
         weight = (rho - self.rho[lower]) / (self.rho[upper] - self.rho[lower])
-        K_lower = self._controller_at_point(self.points[lower], self.rho[lower], rho_dot)
-        K_upper = self._controller_at_point(self.points[upper], self.rho[upper], rho_dot)
+        K_lower = self._controller_at_point(self._grid_point(lower, rho_dot), self.rho[lower],
+                                            rho_dot)
+        K_upper = self._controller_at_point(self._grid_point(upper, rho_dot), self.rho[upper],
+                                            rho_dot)
         return tuple((1.0 - weight) * a + weight * b for a, b in zip(K_lower, K_upper))
+
+    def _grid_point(self, i, rho_dot):
+        """Normalised plant of grid point i at the rate ρ̇ (A + ρ̇ N when there is a rate term)."""
+        if not self.rate_A:
+            return self.points[i]
+        return _shifted(self.points[i], rho_dot * self.rate_A[i])
 
     def _controller_at_point(self, point, rho, rho_dot):
         return controller_at(point, self.X(rho), self.Y(rho), rho_dot * self.dX_drho(rho),
                              self.gamma)
+
+
+def _shifted(point, dA):
+    """The normalised point with A + dA (Â, Ã follow: B2, C2 are unchanged)."""
+    return replace(point, A=point.A + dA)
 
 
 def _lmi_x_blocks(p, X, X_dot, g):
@@ -218,10 +241,17 @@ class _Layout:
     n_Y: int
     vertices: tuple           # rate vertices ν (empty: no rate terms)
     riccati_balanced: bool    # plant_scaling applied the Riccati balancing
+    rate_A: tuple = ()        # the plant's rate term per point, balanced coordinates (or empty)
+
+    def point_at(self, i, nu):
+        """Normalised point i at the rate vertex ν (A + ν N with a rate term)."""
+        p = self.points[i]
+        return p if nu is None or not self.rate_A else _shifted(p, nu * self.rate_A[i])
 
     def rate_terms(self, n_basis):
-        """The rate vertices for a variable with n_basis functions, or (None,) if constant."""
-        return self.vertices if n_basis > 1 and self.vertices else (None,)
+        """The rate vertices for a variable with n_basis functions, or (None,) if constant
+        (and the plant has no rate term)."""
+        return self.vertices if (n_basis > 1 or self.rate_A) and self.vertices else (None,)
 
     def lmi_scales(self):
         """LMI scales for the strictness margin: max(1, ‖B2B2ᵀ‖), max(1, ‖C2ᵀC2‖)."""
@@ -243,7 +273,7 @@ def _values_at(coefficients, theta_i, rho_half):
 
 def _rate(derivative, nu):
     """∂[ν] = ν ∂/∂ρ, or None without rate terms."""
-    return None if nu is None else nu * derivative
+    return None if nu is None or derivative is None else nu * derivative
 
 
 def _all_lmis(layout, Xk, Yk, g):
@@ -255,14 +285,16 @@ def _all_lmis(layout, Xk, Yk, g):
     """
     s_X, s_Y = layout.lmi_scales()
     lmis, XY = [], []
-    for p, theta_i in zip(layout.points, layout.theta):
+    for i, (p, theta_i) in enumerate(zip(layout.points, layout.theta)):
         X, dX = _values_at(Xk, theta_i, layout.rho_half)
         Y, dY = _values_at(Yk, theta_i, layout.rho_half)
         XY.append((X, Y))
         for nu in layout.rate_terms(layout.n_X):
-            lmis.append((_lmi_x_blocks(p, X, _rate(dX, nu), g), X, p.B2 @ p.B2.T, s_X))
+            lmis.append((_lmi_x_blocks(layout.point_at(i, nu), X, _rate(dX, nu), g), X,
+                         p.B2 @ p.B2.T, s_X))
         for nu in layout.rate_terms(layout.n_Y):
-            lmis.append((_lmi_y_blocks(p, Y, _rate(dY, nu), g), Y, p.C2.T @ p.C2, s_Y))
+            lmis.append((_lmi_y_blocks(layout.point_at(i, nu), Y, _rate(dY, nu), g), Y,
+                         p.C2.T @ p.C2, s_Y))
     return lmis, XY
 
 
@@ -520,10 +552,14 @@ def synthesize(plant, rate_bounds=None, basis="quadratic", x_constant=False, bac
     scaling = plant_scaling(plant, balance=balance)
     points = tuple(scaling.normalise(plant.point(i)) for i in range(plant.n_grid))
     varying = bool(vertices) and basis == "quadratic"
+    # the plant's rate term (GriddedPlant.N) in the balanced coordinates; it enters the LMIs at
+    # the rate vertices only (the quadratic variant, for arbitrary ρ̇, leaves it out)
+    rate_A = (tuple(scaling.T_inv @ N_i @ scaling.T for N_i in plant.N)
+              if plant.N is not None and varying else ())
     layout = _Layout(points=points, theta=scaling.theta(plant.rho), rho_half=scaling.rho_half,
                      n_X=3 if varying and not x_constant else 1, n_Y=3 if varying else 1,
                      vertices=vertices if varying else (),
-                     riccati_balanced=scaling.balance == "riccati")
+                     riccati_balanced=scaling.balance == "riccati", rate_A=rate_A)
     solvers = [name for name in (solver, fallback) if name]
     n = plant.n_x
     check_rates = layout.vertices or (0.0,)
@@ -541,10 +577,16 @@ def synthesize(plant, rate_bounds=None, basis="quadratic", x_constant=False, bac
         return LpvSynthesisResult(
             gamma_min=gamma_min, gamma=gamma, X_k=tuple(Xk), Y_k=tuple(Yk),
             rate_vertices=layout.vertices, scaling=scaling, points=points, rho=plant.rho.copy(),
+            rate_A=layout.rate_A,
             sizes=(plant.n_w, plant.n_u, plant.n_e, plant.n_y), t_margin=t_margin)
 
     def certified(result):
-        return float(np.max(certificate_check(plant, result, plant.rho, check_rates)))
+        rate_term = None
+        if layout.rate_A:
+            def rate_term(rho):
+                return plant.N[int(np.argmin(np.abs(plant.rho - rho)))]
+        return float(np.max(certificate_check(plant, result, plant.rho, check_rates,
+                                              rate_term=rate_term)))
 
     # Stage 1: minimum γ
     start, tried = time.perf_counter(), []

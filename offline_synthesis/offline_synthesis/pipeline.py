@@ -5,8 +5,9 @@ bounds → rate-bounded LPV synthesis (γ_min, back-off γ) → quadratic synthe
 check) → verification (dense certificate, frozen-point sweep with the interpolated
 controller, margins) → export of the controller table (Tustin at the controller rate).
 
-Grids: ``thesis`` = t = 10, 20, …, 90 s (thesis §4.3.2); ``refined`` = those plus the thrust
-table's breakpoints in 10–90 s (20 points); ``full`` = 0–100 s placed evenly in
+Grids: ``thesis`` = t = 10, 20, …, 90 s (thesis §4.3.2); ``refined`` = those plus the kinks
+of the plant data (thrust breakpoints, wind-profile altitudes), gaps ≤ 5 s; ``full`` = 0–100 s
+placed evenly in
 velocity between 2 s and 100 s (the thesis found no feasible design there; we report what we
 get). Rate bounds: computed the thesis' way from our trajectory (§4.3.2: min/max of a moving
 mean of dv/dt over 1–100 s, see :func:`rate_bounds_from_trajectory`).
@@ -28,8 +29,8 @@ from .frozen_point import frozen_point_gamma
 from .gridded_plant import GriddedPlant
 from .interconnection import GRID_TIMES_S, weighted_plant
 from .lpv_synthesis import synthesize
-from .verification import (dense_certificate, frozen_point_sweep, loop_margins,
-                           time_at_velocity)
+from .verification import (bending_rate_term, dense_certificate, frozen_point_sweep,
+                           loop_margins, time_at_velocity)
 from .weights import WEIGHT_SETS
 
 __all__ = ["thesis_scenario_metrics", "GRIDS", "RATE_BOXES", "grid_times",
@@ -51,17 +52,40 @@ def grid_times(kind: str, context) -> np.ndarray:
     if kind == "thesis":
         return np.array(GRID_TIMES_S)
     if kind == "refined":
-        # the thesis' points plus every breakpoint of the thrust table inside them: the thrust
-        # is piecewise linear in t, and its kinks (e.g. 72, 74, 82 s) are where the
-        # certificate of the 9-point design failed between grid points (docs/SYNTHESIS.md §5)
-        knots = np.asarray(context.vehicle["propulsion.thrust_time_s"], dtype=float)
-        inside = knots[(knots > GRID_TIMES_S[0]) & (knots < GRID_TIMES_S[-1])]
-        return np.unique(np.concatenate([GRID_TIMES_S, inside]))
+        return _refined_grid(context)
     if kind == "full":
         fc = context.conditions
         v_lo, v_hi = np.interp([2.0, 100.0], fc.t_s, fc.column("v_mps"))
         return time_at_velocity(np.linspace(v_lo, v_hi, _FULL_GRID_POINTS), context)
     raise ValueError(f"--grid {kind!r}: expected one of {', '.join(GRIDS)}")
+
+
+def _refined_grid(context, max_gap_s: float = 5.0) -> np.ndarray:
+    """The thesis' points plus the kinks of the plant data in between, gaps ≤ ``max_gap_s``.
+
+    The plant data are piecewise smooth in flight time: the thrust table is linear between
+    its breakpoints (vehicle.yaml ``propulsion.thrust_time_s``) and the steady wind profile
+    (Eq. 2.54) changes form at H_l, H_f − H_u and H_f. A Lyapunov matrix quadratic in ρ fitted
+    on either side of such a kink did not hold across it (docs/SYNTHESIS.md §5), so the kinks
+    are grid points; gaps longer than ``max_gap_s`` are split evenly.
+    """
+    data, fc = context.vehicle, context.conditions
+    lo, hi = GRID_TIMES_S[0], GRID_TIMES_S[-1]
+    thrust = np.asarray(data["propulsion.thrust_time_s"], dtype=float)
+    h_l, h_u, h_f = (data[f"wind.profile.{k}"] for k in ("h_lower_m", "h_upper_m", "h_final_m"))
+    moving = (fc.t_s >= 2.0) & (fc.t_s <= 100.0)          # h(t) increasing
+    wind = np.interp([h_l, h_f - h_u, h_f], fc.column("h_m")[moving], fc.t_s[moving])
+    knots = np.concatenate([thrust, wind])
+    grid = np.array(GRID_TIMES_S)
+    # a kink within 1 s of a thesis point is represented by that point
+    knots = knots[(knots > lo) & (knots < hi)
+                  & (np.min(np.abs(knots[:, None] - grid[None, :]), axis=1) >= 1.0)]
+    times = np.unique(np.round(np.concatenate([grid, knots]), 1))
+    filled = [times[0]]
+    for a, b in zip(times[:-1], times[1:]):
+        pieces = int(np.ceil((b - a) / max_gap_s - 1e-9))
+        filled += list(np.linspace(a, b, pieces + 1)[1:])
+    return np.array(filled)
 
 
 def rate_bounds_from_trajectory(context) -> tuple[float, float]:
@@ -96,13 +120,16 @@ def rate_box(bounds, kind: str = "with_frozen") -> tuple[float, float]:
 
 
 def gridded_plant(times_s, weights, context):
-    """The weighted interconnection at each grid time, as the synthesis' input."""
+    """The weighted interconnection at each grid time, as the synthesis' input, with the rate
+    term of its frequency-normalised bending coordinates (verification.bending_rate_term)."""
     pts = [weighted_plant(float(t), weights, context) for t in times_s]
     first = pts[0]
-    plant = GriddedPlant(np.array([p.rho_mps for p in pts]), np.array([p.A for p in pts]),
+    rho = np.array([p.rho_mps for p in pts])
+    rate_term = bending_rate_term(context, weights)
+    plant = GriddedPlant(rho, np.array([p.A for p in pts]),
                          np.array([p.B for p in pts]), np.array([p.C for p in pts]),
                          np.array([p.D for p in pts]), first.n_w, first.n_u, first.n_e,
-                         first.n_y)
+                         first.n_y, N=np.array([rate_term(r) for r in rho]))
     return plant, pts
 
 
@@ -196,7 +223,7 @@ def run_synthesis(grid: str = "thesis", weights: str = "shipped", out: str | Pat
 
     if verify:
         t0 = clock()
-        dense_t, _, worst = dense_certificate(result, ws, ctx, factor=4)
+        dense_t, _, worst = dense_certificate(result, ws, ctx, factor=4, physical_rates=True)
         rep.certificate_dense_max = float(worst.max())
         point_worst = worst.max(axis=1)
         rep.certificate_dense = {
@@ -238,6 +265,12 @@ def run_synthesis(grid: str = "thesis", weights: str = "shipped", out: str | Pat
         "weights": {f.name: getattr(ws, f.name) for f in dataclasses.fields(ws)},
         "weight_set": weights, "grid": grid, "grid_times_s": _plain(times),
         "rate_box": box, "trajectory_rate_bounds_mps2": list(trajectory_rates),
+        "synthesis_model": ("M(rho) with bending states eta_i = omega_i(rho) q_i and their rate "
+                            "term rho_dot*(d omega_i/d rho)/omega_i in the LMIs "
+                            "(docs/SYNTHESIS.md section 2)"),
+        "dense_certificate": rep.certificate_dense and {
+            k: rep.certificate_dense[k] for k in ("factor", "n_points", "n_failed",
+                                                  "failed_times_s", "worst_t_s")},
         "solver": rep.solver, "gamma_lti": rep.gamma_lti, "gamma_quadratic": rep.gamma_quadratic,
     }
     write_controller_table(out, plant.rho, *mats, dt_s=dt, gamma=rep.gamma,

@@ -22,8 +22,8 @@ import numpy as np
 from .certificate import certificate_check, closed_loop, hinf_norm
 from .interconnection import plant_for_simulation, weighted_plant
 
-__all__ = ["time_at_velocity", "dense_certificate", "FrozenSweep", "frozen_point_sweep",
-           "LoopMargins", "loop_margins"]
+__all__ = ["time_at_velocity", "bending_rate_term", "dense_certificate", "FrozenSweep",
+           "frozen_point_sweep", "LoopMargins", "loop_margins"]
 
 
 def time_at_velocity(v_mps, context):
@@ -36,12 +36,45 @@ def time_at_velocity(v_mps, context):
     return np.interp(v_mps, v[moving], t[moving])
 
 
+GRID_REFERENCE_T_S = 40.0   # any flight time: only the state names of M are needed
+
+
 def _point(t_s, weights, context):
     return weighted_plant(float(t_s), weights, context).as_point()
 
 
-def dense_certificate(result, weights, context, factor: int = 4, controller: str = "exact"):
+def bending_rate_term(context, weights, h_s: float = 0.05):
+    """N(ρ) of the frequency-normalised bending coordinates η_i = ω_i(ρ) q_i of M(ρ).
+
+    Along a trajectory η̇_i = ω_i q̇_i + (ω̇_i/ω_i) η_i with ω̇_i = ρ̇ dω_i/dρ, so the exact LPV
+    model in these coordinates is ẋ = (A(ρ) + ρ̇ N(ρ)) x + …, N = diag((dω_i/dρ)/ω_i) on the η
+    states (interconnection._frequency_normalised_bending). The synthesis leaves N out; the
+    certificate with it (certificate_check's ``rate_term``) covers the physical model.
+    dω/dρ is a central difference along the trajectory: (dω/dt)/(dv/dt).
+    """
+    names = weighted_plant(GRID_REFERENCE_T_S, weights, context).state_names
+    fc = context.conditions
+
+    def rate_term(rho):
+        t = float(time_at_velocity(rho, context))
+        lo, hi = context.parameters(t - h_s), context.parameters(t + h_s)
+        mid = context.parameters(t)
+        dv = float(np.interp(t + h_s, fc.t_s, fc.column("v_mps"))
+                   - np.interp(t - h_s, fc.t_s, fc.column("v_mps")))
+        N = np.zeros((len(names), len(names)))
+        for mode in (0, 1):
+            i = names.index(f"eta{mode + 1}")
+            N[i, i] = (hi.omega_radps[mode] - lo.omega_radps[mode]) / dv / mid.omega_radps[mode]
+        return N
+    return rate_term
+
+
+def dense_certificate(result, weights, context, factor: int = 4, controller: str = "exact",
+                      physical_rates: bool = False):
     """Certificate eigenvalues on a grid ``factor``× denser (in flight time) than the synthesis'.
+
+    With ``physical_rates`` the plant includes the bending coordinates' rate term
+    (:func:`bending_rate_term`).
 
     Returns
     -------
@@ -62,7 +95,9 @@ def dense_certificate(result, weights, context, factor: int = 4, controller: str
         return cache[key]
 
     vertices = result.rate_vertices or (0.0,)
-    worst = certificate_check(plant_at, result, rho, vertices, controller=controller)
+    rate_term = bending_rate_term(context, weights) if physical_rates else None
+    worst = certificate_check(plant_at, result, rho, vertices, controller=controller,
+                              rate_term=rate_term)
     return times, rho, worst
 
 
