@@ -175,12 +175,29 @@ def test_lockstep_stall_is_detected(run, tmp_path):
 
 
 def test_compute_time_over_budget(run, tmp_path):
-    def mutate(messages):
+    """More than 1 % of the steps over the 12 ms budget fails the run; an isolated overrun (a
+    descheduled step on a shared machine) is reported, not failed."""
+    def isolated(messages):
         messages[messages_on(messages, topics.TVC_CMD.name)[7]][2].compute_time_s = 0.0125
-    check = _check(tmp_path, run, mutate)
+
+    check = _check(tmp_path, run, isolated)
+    h = next(h for h in check.health if h.key == "compute_time")
+    assert h.passed and h.value == "max 12.5 ms" and "1 of " in h.detail
+    n_cmd = None
+
+    def systematic(messages):
+        nonlocal n_cmd
+        cmds = messages_on(messages, topics.TVC_CMD.name)
+        n_cmd = len(cmds)
+        for i in cmds[::50] + cmds[1::50]:  # 4 % of the steps
+            messages[i][2].compute_time_s = 0.0125
+
+    (tmp_path / "b").mkdir()
+    check = _check(tmp_path / "b", run, systematic)
     assert _failed(check) == {"compute_time"}
     h = next(h for h in check.health if h.key == "compute_time")
     assert h.value == "max 12.5 ms" and math.isclose(h.margin, -0.0005)
+    assert f"of {n_cmd} command(s) over budget" in h.detail
 
 
 def test_truncated_run_fails_coverage(run, tmp_path):

@@ -22,7 +22,9 @@ coverage        truth, INS, actuator and commands hold the messages of the whole
                 [t_start, t_end], first and last stamps as :mod:`vega_bus.schedule` says;
                 /clock ticks at exactly the times of ``RunInfo.clock_frames`` (every 100 ms
                 and t_end)
-compute time    every ``TvcCommand.compute_time_s`` ≤ the computing latency (12 ms budget)
+compute time    ``TvcCommand.compute_time_s`` ≤ the computing latency (12 ms budget) for at
+                least 99 % of the commands (:data:`COMPUTE_OVERRUN_FRACTION`); every
+                overrun is counted and reported
 ==============  ===========================================================================
 
 The run: truth (Qα, Mach, z, ż) from ``/vega/truth``; the nozzle angle β from the
@@ -474,6 +476,16 @@ def _check_coverage(bag: bagio.RunBag, ctx: RunContext) -> HealthResult:
                         not problems, "; ".join(problems))
 
 
+COMPUTE_OVERRUN_FRACTION = 0.01
+"""Share of controller steps allowed over the computing-latency budget (wall clock) [-].
+
+Assumption: the SIL measures wall-clock step time on a general-purpose, shared machine, not
+the worst-case execution time of flight hardware; there a step descheduled by the OS now and
+then (measured: 1 run in ~12 under load average 6–10 had one step of 20–64 ms against a
+median of ≈ 40 µs) says nothing about the software. An overrun of more than 1 % of the steps
+does (p99 over budget), and fails the run; isolated overruns are listed in the detail."""
+
+
 def _check_compute_time(ct: np.ndarray, cmd_t_ms: np.ndarray, timing) -> HealthResult:
     budget = timing.computing_latency_ms / 1000.0
     if ct.size == 0:
@@ -481,16 +493,18 @@ def _check_compute_time(ct: np.ndarray, cmd_t_ms: np.ndarray, timing) -> HealthR
                             f"≤ {budget * 1e3:g} ms", False, "no TvcCommand messages")
     finite = ct[np.isfinite(ct)]
     peak = float(np.max(ct)) if finite.size == ct.size else math.inf
+    p99 = float(np.percentile(finite, 99)) if finite.size == ct.size else math.inf
     over = int(np.sum(~(ct <= budget)))
-    detail = (f"median {np.median(finite) * 1e6:.0f} µs, p99 "
-              f"{np.percentile(finite, 99) * 1e6:.0f} µs" if finite.size else "")
+    allowed = int(COMPUTE_OVERRUN_FRACTION * ct.size)
+    detail = (f"median {np.median(finite) * 1e6:.0f} µs, p99 {p99 * 1e6:.0f} µs, max "
+              f"{peak * 1e6:.0f} µs" if finite.size else "")
     if over:
         i = int(np.argmax(~(ct <= budget)))
-        detail = (f"{over} command(s) over budget, first at {cmd_t_ms[i] / 1e3:.3f} s "
-                  f"({ct[i] * 1e3:.3g} ms); " + detail)
+        detail = (f"{over} of {ct.size} command(s) over budget (allowed {allowed}), first at "
+                  f"{cmd_t_ms[i] / 1e3:.3f} s ({ct[i] * 1e3:.3g} ms); " + detail)
     return HealthResult("compute_time", "controller compute time",
-                        f"max {peak * 1e3:.3g} ms", f"≤ {budget * 1e3:g} ms", over == 0,
-                        detail, budget - peak)
+                        f"max {peak * 1e3:.3g} ms", f"≤ {budget * 1e3:g} ms for ≥ 99 %",
+                        over <= allowed and finite.size == ct.size, detail, budget - p99)
 
 
 # ----------------------------------------------------------------------------- entry points
