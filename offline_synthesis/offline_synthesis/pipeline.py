@@ -47,12 +47,13 @@ _RATE_WINDOW_S = 300 * 100.0 / 4995
 _FULL_GRID_POINTS = 13  # assumption: ≈ 1.4× the thesis' density over a 25 % longer span
 
 
-def grid_times(kind: str, context) -> np.ndarray:
-    """Flight times [s] of the grid points."""
+def grid_times(kind: str, context, weights=None) -> np.ndarray:
+    """Flight times [s] of the grid points (``weights``: the weight set, for the ``refined``
+    grid's weight kinks; default the shipped set)."""
     if kind == "thesis":
         return np.array(GRID_TIMES_S)
     if kind == "refined":
-        return _refined_grid(context)
+        return _refined_grid(context, weights or WEIGHT_SETS["shipped"])
     if kind == "full":
         fc = context.conditions
         v_lo, v_hi = np.interp([2.0, 100.0], fc.t_s, fc.column("v_mps"))
@@ -60,14 +61,15 @@ def grid_times(kind: str, context) -> np.ndarray:
     raise ValueError(f"--grid {kind!r}: expected one of {', '.join(GRIDS)}")
 
 
-def _refined_grid(context, max_gap_s: float = 5.0) -> np.ndarray:
+def _refined_grid(context, weights, max_gap_s: float = 5.0) -> np.ndarray:
     """The thesis' points plus the kinks of the plant data in between, gaps ≤ ``max_gap_s``.
 
-    The plant data are piecewise smooth in flight time: the thrust table is linear between
-    its breakpoints (vehicle.yaml ``propulsion.thrust_time_s``) and the steady wind profile
-    (Eq. 2.54) changes form at H_l, H_f − H_u and H_f. A Lyapunov matrix quadratic in ρ fitted
-    on either side of such a kink did not hold across it (docs/SYNTHESIS.md §5), so the kinks
-    are grid points; gaps longer than ``max_gap_s`` are split evenly.
+    The weighted plant is piecewise smooth in flight time: the thrust table is linear between
+    its breakpoints (vehicle.yaml ``propulsion.thrust_time_s``), the steady wind profile
+    (Eq. 2.54) changes form at H_l, H_f − H_u and H_f, and W_Qα = 1/(α_max max(Q, Q_floor))
+    has a kink where Q crosses Q_floor. A Lyapunov matrix quadratic in ρ fitted on either side
+    of such a kink did not hold across it (docs/SYNTHESIS.md §5), so the kinks are grid
+    points; gaps longer than ``max_gap_s`` are split evenly.
     """
     data, fc = context.vehicle, context.conditions
     lo, hi = GRID_TIMES_S[0], GRID_TIMES_S[-1]
@@ -75,7 +77,11 @@ def _refined_grid(context, max_gap_s: float = 5.0) -> np.ndarray:
     h_l, h_u, h_f = (data[f"wind.profile.{k}"] for k in ("h_lower_m", "h_upper_m", "h_final_m"))
     moving = (fc.t_s >= 2.0) & (fc.t_s <= 100.0)          # h(t) increasing
     wind = np.interp([h_l, h_f - h_u, h_f], fc.column("h_m")[moving], fc.t_s[moving])
-    knots = np.concatenate([thrust, wind])
+    q = fc.column("q_pa") - weights.q_alpha_q_floor_pa
+    crossing = np.flatnonzero(np.sign(q[:-1]) * np.sign(q[1:]) < 0)
+    q_floor = fc.t_s[crossing] - q[crossing] * (fc.t_s[crossing + 1] - fc.t_s[crossing]) / (
+        q[crossing + 1] - q[crossing])
+    knots = np.concatenate([thrust, wind, q_floor])
     grid = np.array(GRID_TIMES_S)
     # a kink within 1 s of a thesis point is represented by that point
     knots = knots[(knots > lo) & (knots < hi)
@@ -182,7 +188,7 @@ def run_synthesis(grid: str = "thesis", weights: str = "shipped", out: str | Pat
     ctx = context or default_context()
     ws = WEIGHT_SETS[weights]
     out = Path(out) if out else DEFAULT_TABLE
-    times = grid_times(grid, ctx)
+    times = grid_times(grid, ctx, ws)
     trajectory_rates = rate_bounds_from_trajectory(ctx)
     rates = rate_box(trajectory_rates, box)
     clock = time.perf_counter
