@@ -63,6 +63,9 @@ def test_recorded_gammas_and_rate_box(table, context):
     # rate-bounded level (the box contains ρ̇ = 0), which is no worse than the quadratic one
     assert max(table.metadata["gamma_lti"]) <= table.gamma_min * (1.0 + 1e-6)
     assert table.gamma_min <= table.metadata["gamma_quadratic"]
+    # the synthesis' own record: certificate on the 4× denser grid held everywhere
+    dense = table.metadata["dense_certificate"]
+    assert dense["factor"] == 4 and dense["n_failed"] == 0 and dense["n_points"] > 4 * 9
 
 
 @pytest.mark.parametrize("t_s", (10.0, 37.0, 64.0, 90.0))

@@ -174,7 +174,7 @@ def _plain(x):
     return [float(v) for v in np.ravel(x)]
 
 
-def run_synthesis(grid: str = "thesis", weights: str = "shipped", out: str | Path | None = None,
+def run_synthesis(grid: str = "refined", weights: str = "shipped", out: str | Path | None = None,
                   context=None, progress: Callable[[str], None] = print,
                   verify: bool = True, n_frozen: int = 121,
                   box: str = "with_frozen") -> SynthesisReport:

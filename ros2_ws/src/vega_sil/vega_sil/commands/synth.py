@@ -39,9 +39,10 @@ def register(subparsers) -> None:
         description="Offline LPV synthesis (cvxpy + Clarabel): weighted interconnection on the "
                     "grid, frozen-point LTI bounds, rate-bounded and quadratic synthesis, "
                     "verification, Tustin export. Exit status 1 if gamma > 1.")
-    p.add_argument("--grid", choices=("thesis", "refined", "full"), default="thesis",
-                   help="thesis: t = 10..90 s (9 points); refined: those plus the thrust "
-                        "table's breakpoints (20 points); full: 0-100 s, placed in velocity")
+    p.add_argument("--grid", choices=("thesis", "refined", "full"), default="refined",
+                   help="refined (default, the shipped table): the thesis' points plus the kinks "
+                        "of the plant data, gaps <= 5 s; thesis: t = 10..90 s (9 points); "
+                        "full: 0-100 s, placed in velocity")
     p.add_argument("--weights", choices=("shipped", "thesis"), default="shipped",
                    help="named weight set (docs/SYNTHESIS_WEIGHTS.md)")
     p.add_argument("--rate-box", choices=("with_frozen", "thesis"), default="with_frozen",
