@@ -284,14 +284,15 @@ def _frequency_normalised_bending(A, B, C, names, omega_radps):
     form of the W_β notch sections: a constant Lyapunov matrix (the identity) serves the
     mode at every frequency, while in (q_i, q̇_i) the mode's energy metric diag(ω_i², 1)
     changes along the flight and a ρ-independent or slowly varying X(ρ), Y(ρ) cannot follow
-    it. Without this change the 9-point LPV LMIs of the real plant did not solve.
+    it (docs/SYNTHESIS.md §2: with Clarabel's regularisation retry this is what made the
+    9-point LMIs of the real plant solve; the run without it was not completed).
 
     The change is a frozen-point similarity x = T(ρ) x_η: every frozen plant keeps its
-    transfer function, and the frozen-point checks are unaffected. The LPV model in η
-    differs from the one in q by the rate term ρ̇ (dT⁻¹/dρ) T, i.e. η̇_i = ω_i q̇_i +
-    (ω̇_i/ω_i) η_i, which the synthesis neglects: |ω̇_i/ω_i| = |ρ̇ (dω_i/dρ)/ω_i| ≤ 35.8 m/s²
-    × 2.3e-4 s/m ≈ 8e-3 1/s on 10–90 s, against the modes' own decay ζω_i ≥ 0.24 1/s
-    (docs/SYNTHESIS.md §2).
+    transfer function, and the frozen-point checks are unaffected. Along a trajectory the
+    LPV model in η gains the rate term ρ̇ (dT⁻¹/dρ) T, i.e. η̇_i = ω_i q̇_i + (ω̇_i/ω_i) η_i
+    (|ω̇_i/ω_i| ≤ 8e-3 1/s on 10–90 s against the modes' decay ζω_i ≥ 0.24 1/s). Small, but
+    not negligible for the certificate: the synthesis takes it in as ``GriddedPlant.N``
+    (pipeline.gridded_plant, verification.bending_rate_term).
     """
     T = np.ones(A.shape[0])
     for (old, new), omega in zip(_BENDING_STATES, omega_radps):
