@@ -32,6 +32,8 @@ import threading
 import time
 from typing import Any, Callable
 
+from . import network
+
 __all__ = ["EXIT_OK", "EXIT_RUN_FAILURE", "EXIT_BAD_INPUT", "NodeExit", "Stopped", "Shell",
            "RecorderProgress", "run_node", "SeqCheck"]
 
@@ -91,6 +93,9 @@ class Shell:
         self.failure: NodeExit | None = None
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, self._on_signal)
+        if network.enforce():
+            print(f"{name}: ROS_DOMAIN_ID was not set; using {network.HAND_START_DOMAIN_ID}, "
+                  f"the default for nodes started by hand", file=sys.stderr)
         rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node(name)
         self._rclpy = rclpy_implementation

@@ -24,6 +24,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from vega_bus import network
+
 __all__ = [
     "DOMAIN_ID_MIN",
     "DOMAIN_ID_MAX",
@@ -40,13 +42,14 @@ DOMAIN_ID_MIN = 1
 DOMAIN_ID_MAX = 101
 """Largest ROS_DOMAIN_ID whose Fast DDS ports are safe on Linux."""
 
-HAND_START_DOMAIN_ID = DOMAIN_ID_MAX
+HAND_START_DOMAIN_ID = network.HAND_START_DOMAIN_ID
 """ROS_DOMAIN_ID of nodes started by hand with ``vega node`` when the caller exported none:
 one fixed id, so that nodes started in separate terminals meet; :func:`pick_domain_id` never
 hands it out, so automated runs (tests, ``vega sil run``) never meet hand-started nodes."""
+assert HAND_START_DOMAIN_ID == DOMAIN_ID_MAX
 
 _BOOTSTRAP_GUARD = "_ROS_WHEELS_BOOTSTRAP_COMPLETE"
-_REMOVED_VARIABLES = ("ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS")
+_REMOVED_VARIABLES = network.REMOVED_VARIABLES
 
 
 class DomainIdError(ValueError):
@@ -144,7 +147,7 @@ def ros_environment(base=None, domain_id=None):
         If ``domain_id`` or the ROS_DOMAIN_ID in ``base`` is not an integer in 1..101.
     """
     env = dict(os.environ if base is None else base)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = network.DISCOVERY_RANGE
     for name in _REMOVED_VARIABLES:
         env.pop(name, None)
     if domain_id is None:
