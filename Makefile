@@ -8,7 +8,7 @@
 # Every step is incremental: a second `make setup` with nothing changed does nothing.
 # Environment rules (../shared/design/ENVIRONMENT.md): every process started from here discovers
 # on localhost only; `vega`, `vega-env` and the test suite pick a ROS_DOMAIN_ID per run
-# (vega_sil/rosenv.py) unless the caller exported one (1..101).
+# (vega_bringup/rosenv.py) unless the caller exported one (1..101).
 
 SHELL := /bin/bash
 .SHELLFLAGS := -eu -o pipefail -c
@@ -80,7 +80,7 @@ $(VENV)/bin/vega: $(ROOT)/Makefile | $(VENV)/bin/python
 	@printf '%s\n' '#!/usr/bin/env bash' \
 	  '# vega: the VEGA TVC command line (written by `make setup`, see Makefile).' \
 	  'source "$(ROOT)/tools/env.bash"' \
-	  'exec "$$VIRTUAL_ENV/bin/python" -m vega_sil.cli "$$@"' > $@
+	  'exec "$$VIRTUAL_ENV/bin/python" -m vega_cli.cli "$$@"' > $@
 	@chmod +x $@
 
 $(VENV)/bin/vega-env: $(ROOT)/Makefile | $(VENV)/bin/python
@@ -89,7 +89,7 @@ $(VENV)/bin/vega-env: $(ROOT)/Makefile | $(VENV)/bin/python
 	  '# vega-env CMD [ARGS...]: run CMD in the VEGA TVC project environment.' \
 	  '# (written by `make setup`, see Makefile)' \
 	  'source "$(ROOT)/tools/env.bash"' \
-	  'exec "$$VIRTUAL_ENV/bin/python" -m vega_sil.rosenv "$$@"' > $@
+	  'exec "$$VIRTUAL_ENV/bin/python" -m vega_bringup.rosenv "$$@"' > $@
 	@chmod +x $@
 
 test: setup

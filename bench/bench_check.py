@@ -3,10 +3,10 @@
 Usage: .venv/bin/vega-env python bench/bench_check.py [TABLE.npz]
 Flies the ``nominal`` scenario (0–100 s) in process with TABLE (default: the shipped
 controller table, else the PD test fixture of tests/fixture_tables.py), writes its run bag
-with the real message types (vega_sil.simbag), then runs ``vega check BAG`` (the venv's
+with the real message types (vega_bags.simbag), then runs ``vega check BAG`` (the venv's
 console script) as a fresh process five times and reports the wall time (interpreter start
 and imports included), its CPU time (user + sys: the figure that does not depend on the
-machine's load), and the in-process time of :func:`vega_sil.bagcheck.check_bag` alone.
+machine's load), and the in-process time of :func:`vega_bags.bagcheck.check_bag` alone.
 """
 
 import os
@@ -38,9 +38,9 @@ def _table(directory: Path) -> tuple[Path, str]:
 
 
 def main():
-    from vega_plant.scenario import load_scenario
-    from vega_sil import bagcheck, simbag
-    from vega_sil.closed_loop import run_scenario
+    from vega_sim.scenario import load_scenario
+    from vega_bags import bagcheck, simbag
+    from vega_sim.closed_loop import run_scenario
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)

@@ -54,7 +54,7 @@ def main():
         for run in range(args.repeat):
             t0 = time.perf_counter()
             result = subprocess.run(
-                [sys.executable, "-m", "vega_sil.cli", "sil", "run", "--scenario",
+                [sys.executable, "-m", "vega_cli.cli", "sil", "run", "--scenario",
                  args.scenario, "--table", str(table), "--out", scratch, "--run-id",
                  f"run{run}"], capture_output=True, text=True, check=False)
             total = time.perf_counter() - t0

@@ -11,8 +11,8 @@ import sys
 import time
 from pathlib import Path
 
-from vega_sil.closed_loop import run_scenario
-from vega_plant.scenario import load_scenario
+from vega_sim.closed_loop import run_scenario
+from vega_sim.scenario import load_scenario
 
 SHIPPED = Path(__file__).resolve().parent.parent / "ros2_ws/src/vega_gnc/config/lpv_controller.npz"
 

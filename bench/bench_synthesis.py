@@ -20,7 +20,7 @@ from offline_synthesis.lpv_synthesis import synthesize
 from offline_synthesis.pipeline import (grid_times, gridded_plant, rate_bounds_from_trajectory,
                                         rate_box, run_synthesis)
 from offline_synthesis.weights import SHIPPED
-from vega_plant.parameters import default_context
+from vega_model.parameters import default_context
 
 
 def main():

@@ -1,7 +1,7 @@
 """Session set-up shared by the whole test suite.
 
 Before any test module is imported (and so before anything imports rclpy), the test process
-gets the project's ROS environment from :mod:`vega_sil.rosenv`: discovery on localhost only,
+gets the project's ROS environment from :mod:`vega_bringup.rosenv`: discovery on localhost only,
 ``ROS_LOCALHOST_ONLY`` unset and a ROS_DOMAIN_ID of its own for this test run (kept if the
 caller, e.g. ``make test`` through ``vega-env``, already chose one). Child processes get the
 same environment from the ``ros_env`` fixture, never a stripped one.
@@ -20,10 +20,10 @@ import pytest
 _REPO_ROOT = Path(__file__).resolve().parent.parent
 
 try:
-    from vega_sil import rosenv
+    from vega_bringup import rosenv
 except ImportError:  # pytest started outside the project environment (no workspace on the path)
-    sys.path.insert(0, str(_REPO_ROOT / "ros2_ws" / "src" / "vega_sil"))
-    from vega_sil import rosenv
+    sys.path.insert(0, str(_REPO_ROOT / "ros2_ws" / "src" / "vega_bringup"))
+    from vega_bringup import rosenv
 
 __all__ = ["ros_domain_id", "ros_env"]
 
@@ -62,7 +62,7 @@ def ros_env():
     Returns
     -------
     dict[str, str]
-        A fresh copy from :func:`vega_sil.rosenv.ros_environment` (same ROS_DOMAIN_ID as the
+        A fresh copy from :func:`vega_bringup.rosenv.ros_environment` (same ROS_DOMAIN_ID as the
         test run); tests may modify it.
     """
     return rosenv.ros_environment()

@@ -1,7 +1,7 @@
 """Run bags for tests, written from the in-process simulation (no SIL needed).
 
 :func:`short_run` flies the thesis scenario over a short span with the PD fixture table;
-:func:`write_bag` writes its messages (``vega_sil.simbag``: the real message types,
+:func:`write_bag` writes its messages (``vega_bags.simbag``: the real message types,
 serialised by rclpy) into a run bag, after an optional ``mutate(messages)`` that injects a
 fault (a NaN, a dropped message, a stalled stamp, …) into the list of
 (topic, log time [ns], rclpy message).
@@ -32,8 +32,8 @@ class ShortRun:
 
 def short_run(directory: Path, span_s=SPAN_S) -> ShortRun:
     """Fly the thesis scenario over ``span_s`` with the PD table written into ``directory``."""
-    from vega_plant.scenario import load_scenario
-    from vega_sil.closed_loop import run_scenario
+    from vega_sim.scenario import load_scenario
+    from vega_sim.closed_loop import run_scenario
 
     table_path = Path(directory) / "pd.npz"
     table = write_pd_table(table_path)
@@ -45,7 +45,7 @@ def write_bag(path: Path, run: ShortRun,
               mutate: Callable[[list], list | None] | None = None) -> Path:
     """Write the run's bag at ``path``, after ``mutate(messages)`` if given (it may change the
     list in place or return a new one)."""
-    from vega_sil import bagio, simbag
+    from vega_bags import bagio, simbag
 
     messages = simbag.simulation_messages(run.result)
     if mutate is not None:

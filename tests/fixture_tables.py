@@ -43,8 +43,8 @@ def _export(path, grid, A, B, C, D) -> "ControllerTable":
 
 def write_pd_table(path: str | Path) -> "ControllerTable":
     """Write the scheduled PD controller table (module docstring) to ``path``."""
-    from vega_plant.dynamics import linear_model
-    from vega_plant.parameters import default_context
+    from vega_model.dynamics import linear_model
+    from vega_model.parameters import default_context
 
     ctx = default_context()
     wn, zeta, wz, zz, wf, zf = 2.5, 0.7, 0.15, 0.8, 10.0, 0.7

@@ -12,8 +12,9 @@ from pathlib import Path
 import yaml
 
 from vega_bus import topics
-from vega_plant.scenario import scenario_path
-from vega_sil import bagio, orchestrate, rosenv
+from vega_sim.scenario import scenario_path
+from vega_bags import bagio
+from vega_bringup import orchestrate, rosenv
 
 __all__ = ["write_short_scenario", "flight_env", "vega_sil_run", "start_vega_sil_run",
            "run_layout_in", "children_of", "alive", "wait_for_sim_time", "normalised",
@@ -37,7 +38,7 @@ def flight_env():
 
 
 def _vega_sil_run_argv(args):
-    return [sys.executable, "-m", "vega_sil.cli", "sil", "run", *map(str, args)]
+    return [sys.executable, "-m", "vega_cli.cli", "sil", "run", *map(str, args)]
 
 
 def vega_sil_run(args):
@@ -119,7 +120,7 @@ def normalised(topic, data, drop_frame_id=False):
     """The CDR payload of a message in canonical form, for byte comparisons.
 
     Deserialised and serialised again by the rosbags typestore of the bags
-    (:func:`vega_sil.bagio.vega_typestore`), which writes zeros into the alignment padding:
+    (:func:`vega_bags.bagio.vega_typestore`), which writes zeros into the alignment padding:
     rclpy's serialiser leaves whatever was in memory there, so two serialisations of one
     message may differ in those bytes while every data byte is the same. The controller's
     wall-clock ``compute_time_s`` (the one field that may differ between runs) is set to 0

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from vega_plant.actuator import ActuatorParams, TvcActuator, linear_actuator_ss
-from vega_plant.vehicle_data import load_vehicle_data
+from vega_model.actuator import ActuatorParams, TvcActuator, linear_actuator_ss
+from vega_model.vehicle_data import load_vehicle_data
 
 DEG = math.pi / 180.0
 

@@ -1,13 +1,13 @@
-"""Aerodynamic model (vega_plant.aero): public max-Q anchor, C_N(α) properties, hand values."""
+"""Aerodynamic model (vega_model.aero): public max-Q anchor, C_N(α) properties, hand values."""
 
 import math
 
 import numpy as np
 import pytest
 
-from vega_plant.aero import Aerodynamics
-from vega_plant.flight_conditions import FlightConditions
-from vega_plant.vehicle_data import load_vehicle_data
+from vega_model.aero import Aerodynamics
+from vega_model.flight_conditions import FlightConditions
+from vega_model.vehicle_data import load_vehicle_data
 
 # The one public VEGA aerodynamic point (Simplício's PhD thesis Table 10.1, as quoted in
 # public material): at max-Q, C_Nα = 2.007 /rad and x_CP = 18.36 m from the base, S_ref 7.14 m².

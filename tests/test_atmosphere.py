@@ -1,4 +1,4 @@
-"""US76 atmosphere (vega_plant.atmosphere): textbook values and an independent cross-check.
+"""US76 atmosphere (vega_model.atmosphere): textbook values and an independent cross-check.
 
 The engine is ``fluids.atmosphere.ATMOSPHERE_1976``; the cross-check uses ``ambiance``
 (ICAO 1993 standard atmosphere). ICAO 1993 and US76 share the layer definitions and
@@ -15,7 +15,7 @@ import ambiance
 import numpy as np
 import pytest
 
-from vega_plant.atmosphere import H_MAX_M, H_MIN_M, atmosphere
+from vega_model.atmosphere import H_MAX_M, H_MIN_M, atmosphere
 
 R0_M = 6356766.0  # US76 Earth radius for geopotential altitude [m] (US76 document, Eq. 18)
 

@@ -1,4 +1,4 @@
-"""Run bags (vega_sil.bagio): writer, reader, metadata and the one-line errors.
+"""Run bags (vega_bags.bagio): writer, reader, metadata and the one-line errors.
 
 Messages are rclpy messages serialised by rclpy (the bytes a recorder receives); the bag is
 read back by our reader and by plain rosbags.
@@ -12,7 +12,7 @@ from rclpy.serialization import serialize_message
 
 import msg_samples
 from vega_bus import topics
-from vega_sil import bagio
+from vega_bags import bagio
 
 TOPIC_OF = {"InsMeasurement": topics.INS.name, "TvcCommand": topics.TVC_CMD.name,
             "ActuatorState": topics.ACTUATOR.name, "VehicleState": topics.TRUTH.name}

@@ -1,4 +1,4 @@
-"""``vega check``: requirements and run health from a bag alone (vega_sil.bagcheck).
+"""``vega check``: requirements and run health from a bag alone (vega_bags.bagcheck).
 
 Bags are written from the in-process simulation (tests/fixture_bags.py: real message types,
 serialised by rclpy); faults are injected into the messages before they are written.
@@ -14,8 +14,9 @@ import pytest
 
 from fixture_bags import messages_on, short_run, write_bag
 from vega_bus import topics
-from vega_sil import bagcheck, bagio, cli
-from vega_sil.requirements import REQUIREMENT_KEYS, default_requirements_path
+from vega_bags import bagcheck, bagio
+from vega_cli import cli
+from vega_sim.requirements import REQUIREMENT_KEYS, default_requirements_path
 
 MS = 1_000_000  # ns
 
@@ -241,7 +242,7 @@ def test_foreign_bag_from_the_command_line(tmp_path, ros_env):
         conn = writer.add_connection("/chatter", "std_msgs/msg/String", typestore=store)
         msg = store.types["std_msgs/msg/String"](data="hello")
         writer.write(conn, 1, store.serialize_cdr(msg, "std_msgs/msg/String"))
-    proc = subprocess.run([sys.executable, "-m", "vega_sil.cli", "check",
+    proc = subprocess.run([sys.executable, "-m", "vega_cli.cli", "check",
                            str(tmp_path / "chatter")], env=ros_env, capture_output=True,
                           text=True, timeout=120)
     assert proc.returncode == 2 and proc.stdout == ""
@@ -254,7 +255,7 @@ def test_metadata_missing_fails(run, tmp_path):
     from rclpy.serialization import serialize_message
     from rosbags.rosbag2 import StoragePlugin, Writer
 
-    from vega_sil import simbag
+    from vega_bags import simbag
 
     store = bagio.vega_typestore()
     with Writer(tmp_path / "bare", version=9, storage_plugin=StoragePlugin.MCAP) as writer:

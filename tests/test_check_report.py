@@ -1,4 +1,4 @@
-"""The run report (vega_sil.report): bag → JSON + Markdown + PNG plots, and the verdict."""
+"""The run report (vega_bags.report): bag → JSON + Markdown + PNG plots, and the verdict."""
 
 import json
 
@@ -6,7 +6,8 @@ import pytest
 
 from fixture_bags import messages_on, short_run, write_bag
 from vega_bus import topics
-from vega_sil import bagio, cli, report
+from vega_bags import bagio, report
+from vega_cli import cli
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

@@ -16,20 +16,20 @@ from scipy.signal import cont2discrete
 from fixture_tables import write_gain_table, write_pd_table
 from offline_synthesis.weights import THESIS
 from vega_gnc.controller_runtime import STATUS_OK
-from vega_plant.dynamics import linear_model
-from vega_plant.ins import InsParams
-from vega_plant.actuator import ActuatorParams
-from vega_plant.parameters import default_context
-from vega_plant.wind import dryden_ss
+from vega_model.dynamics import linear_model
+from vega_model.ins import InsParams
+from vega_model.actuator import ActuatorParams
+from vega_model.parameters import default_context
+from vega_model.wind import dryden_ss
 from vega_bus.timing import LoopTiming, ms_to_stamp, seconds_to_ms, stamp_to_ms
-from vega_gnc.sim_controller import ControllerNode
-from vega_plant import sim_plant
-from vega_plant.scenario import InitialState, Scenario, WindSettings, load_scenario
-from vega_plant.sim_nodes import ActuatorNode, InsNode
-from vega_plant.sim_plant import (THESIS_DRYDEN_WEIGHT, ParameterTrack, TruthOut,
+from vega_gnc.controller_step import ControllerStep
+from vega_sim import plant_step
+from vega_sim.scenario import InitialState, Scenario, WindSettings, load_scenario
+from vega_sim.device_steps import ActuatorStep, InsStep
+from vega_sim.plant_step import (THESIS_DRYDEN_WEIGHT, ParameterTrack, TruthOut,
                                   _expm_batched, parameters_at, thesis_dryden_coefficients)
-from vega_plant.sim_setup import derive_seeds, make_actuator, make_ins, make_plant
-from vega_sil.closed_loop import build_nodes, make_controller, run_scenario
+from vega_sim.assembly import derive_seeds, make_actuator, make_ins, make_plant
+from vega_sim.closed_loop import build_nodes, make_controller, run_scenario
 
 QUIET = WindSettings(profile=False, turbulence="none", gust=None)
 
@@ -109,7 +109,7 @@ def test_parameter_entries_are_held_per_refresh_interval():
 
 
 def test_thesis_dryden_is_the_exact_zoh_of_the_dryden_filter():
-    """One step equals cont2discrete(ZOH) of vega_plant.wind.dryden_ss with input 1; it
+    """One step equals cont2discrete(ZOH) of vega_model.wind.dryden_ss with input 1; it
     converges to W_w × the filter's DC gain; W_w is the synthesis' weight (§4.5.1)."""
     data = default_context().vehicle
     assert THESIS_DRYDEN_WEIGHT == THESIS.wind_sigmas == 3.0
@@ -180,9 +180,9 @@ def test_latency_with_decimation_phase_at_node_level(gain_table, step_ms):
     ctx = default_context()
     data = ctx.vehicle
     timing = LoopTiming.from_vehicle(data)
-    ins = InsNode(InsParams.from_vehicle(data), timing, seed=0, noise=False)
-    ctrl = ControllerNode(gain_table, timing)
-    act = ActuatorNode(ActuatorParams.from_vehicle(data), timing, t_start_ms=960)
+    ins = InsStep(InsParams.from_vehicle(data), timing, seed=0, noise=False)
+    ctrl = ControllerStep(gain_table, timing)
+    act = ActuatorStep(ActuatorParams.from_vehicle(data), timing, t_start_ms=960)
     motion = None
     for t in range(960, 1200, 10):
         p = ctx.parameters(t / 1000.0)
@@ -230,7 +230,7 @@ def test_same_seed_same_arrays(pd_table):
     """Deterministic: identical arrays run to run, also after the parameter cache is cleared."""
     sc = replace(load_scenario("nominal"), t_start_s=20.0, t_end_s=22.0)
     first = run_scenario(sc, pd_table).arrays()
-    sim_plant._cached_track.cache_clear()
+    plant_step._cached_track.cache_clear()
     second = run_scenario(sc, pd_table).arrays()
     assert first.keys() == second.keys()
     for name in first:
@@ -331,7 +331,7 @@ def test_result_layout_and_metrics(pd_table):
 def test_bad_inputs(pd_table, tmp_path):
     with pytest.raises(ValueError, match="controller table dt_s"):
         bad = write_gain_table(tmp_path / "slow.npz")
-        ControllerNode(replace(bad, dt_s=0.01), LoopTiming())
+        ControllerStep(replace(bad, dt_s=0.01), LoopTiming())
     with pytest.raises(ValueError, match="flight-condition table"):
         run_scenario(_scenario(t_start_s=0.0, t_end_s=110.0), pd_table)
     with pytest.raises(ValueError, match="unknown scenario"):

@@ -6,8 +6,8 @@ import control
 import numpy as np
 import pytest
 
-from vega_plant.delay import DelayLine, DelayParams, pade_ss
-from vega_plant.vehicle_data import load_vehicle_data
+from vega_model.delay import DelayLine, DelayParams, pade_ss
+from vega_model.vehicle_data import load_vehicle_data
 
 
 def _freq_response(ss, w):

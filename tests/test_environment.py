@@ -4,7 +4,7 @@ Checked (a) in this test process, (b) in children started through the real entry
 (``.venv/bin/vega``, ``vega node`` and ``.venv/bin/vega-env``, called by absolute path from
 another directory with a bare environment: no venv activated, nothing ROS set, or hostile
 values set), and (c) across invocations: each gets its own domain id unless the caller set one.
-Also the rules of :mod:`vega_sil.rosenv` themselves.
+Also the rules of :mod:`vega_bringup.rosenv` themselves.
 """
 
 import json
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from vega_sil import rosenv
+from vega_bringup import rosenv
 
 VENV_BIN = Path(sys.prefix) / "bin"
 VEGA = VENV_BIN / "vega"
@@ -214,7 +214,7 @@ def test_bad_caller_domain_id_is_rejected(tmp_path, value):
         assert result.stderr.count("\n") == 1
 
 
-# vega_sil.rosenv ----------------------------------------------------------------------------------
+# vega_bringup.rosenv ----------------------------------------------------------------------------------
 
 def test_pick_domain_id_cycles_through_all_ids(tmp_path):
     """Round robin over 1..100: consecutive picks differ, 100 picks use every id once, and the

@@ -16,10 +16,10 @@ import pytest
 
 from offline_synthesis.trajectory import (AscentModel, TrajectoryError, simulate,
                                           write_flight_conditions)
-from vega_plant.flight_conditions import (COLUMNS, FlightCondition, FlightConditions,
+from vega_model.flight_conditions import (COLUMNS, FlightCondition, FlightConditions,
                                           FlightConditionsError, default_flight_conditions_path)
-from vega_plant.vehicle_data import load_vehicle_data
-from vega_sil.commands import trajectory as trajectory_command
+from vega_model.vehicle_data import load_vehicle_data
+from vega_cli.commands import trajectory as trajectory_command
 
 REQUIRED = ("t_s", "v_mps", "vdot_mps2", "h_m", "mach", "rho_kgpm3", "sound_speed_mps", "q_pa",
             "thrust_n", "axial_force_n", "mass_kg", "x_cg_m", "jyy_kgm2", "x_cp_m",
@@ -53,7 +53,7 @@ def test_regenerating_reproduces_the_committed_table(regenerated):
                 if a != b]
         pytest.fail(f"regenerated table differs from the committed one (first differing lines "
                     f"{diff[:5]}); run: vega trajectory --out "
-                    f"ros2_ws/src/vega_plant/vega_plant/data/flight_conditions.csv")
+                    f"ros2_ws/src/vega_model/vega_model/data/flight_conditions.csv")
 
 
 def test_summary_line(regenerated):

@@ -5,10 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from vega_plant.dynamics import ins_outputs
-from vega_plant.ins import InsParams, InsSensor, sample_schedule
-from vega_plant.parameters import model_parameters
-from vega_plant.vehicle_data import load_vehicle_data
+from vega_model.dynamics import ins_outputs
+from vega_model.ins import InsParams, InsSensor, sample_schedule
+from vega_model.parameters import model_parameters
+from vega_model.vehicle_data import load_vehicle_data
 
 DEG = math.pi / 180.0
 

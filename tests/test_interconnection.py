@@ -12,12 +12,12 @@ from offline_synthesis.interconnection import (GRID_TIMES_S, W_INPUTS, W_OUTPUTS
                                                GeneralizedPlant, plant_for_simulation, weight_ss,
                                                weighted_plant)
 from offline_synthesis.weights import SHIPPED, THESIS, WEIGHT_SETS, WeightSet
-from vega_plant.actuator import ActuatorParams, linear_actuator_ss
-from vega_plant.delay import DelayParams
-from vega_plant.dynamics import linear_model
-from vega_plant.parameters import model_parameters
-from vega_plant.vehicle_data import load_vehicle_data
-from vega_plant.wind import dryden_ss, turbulence_params, wind_profile_mps
+from vega_model.actuator import ActuatorParams, linear_actuator_ss
+from vega_model.delay import DelayParams
+from vega_model.dynamics import linear_model
+from vega_model.parameters import model_parameters
+from vega_model.vehicle_data import load_vehicle_data
+from vega_model.wind import dryden_ss, turbulence_params, wind_profile_mps
 
 DEG = math.pi / 180.0
 # γ_LTI of the "thesis" set at t = 40 s measured on our plant (docs/SYNTHESIS_WEIGHTS.md §5).

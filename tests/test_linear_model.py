@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from vega_plant.dynamics import INPUTS, OUTPUTS, STATES, linear_model
-from vega_plant.parameters import model_parameters
+from vega_model.dynamics import INPUTS, OUTPUTS, STATES, linear_model
+from vega_model.parameters import model_parameters
 
 
 def test_names_and_shapes():

@@ -13,7 +13,7 @@ from offline_synthesis.gridded_plant import GriddedPlant
 from offline_synthesis.interconnection import GRID_TIMES_S, weighted_plant
 from offline_synthesis.lpv_synthesis import synthesize
 from offline_synthesis.weights import WEIGHT_SETS
-from vega_plant.parameters import default_context
+from vega_model.parameters import default_context
 
 
 @pytest.mark.parametrize("t", GRID_TIMES_S)

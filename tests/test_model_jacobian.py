@@ -9,8 +9,8 @@ round-off, at seven flight times — including times between flight-condition ta
 import numpy as np
 import pytest
 
-from vega_plant.dynamics import linear_model, nonlinear_derivatives, nonlinear_outputs
-from vega_plant.parameters import model_parameters
+from vega_model.dynamics import linear_model, nonlinear_derivatives, nonlinear_outputs
+from vega_model.parameters import model_parameters
 
 # Steps: every perturbation that moves α does so by ~1e-7 rad (the crossflow term
 # sin α|sin α| is odd, so a central difference has an O(h) error there): θ, θ̇, β 1e-7;
@@ -86,7 +86,7 @@ def test_rk4_step_is_the_array_rk4_bit_for_bit(t):
     """The plant's plain-float RK4 step (NonlinearModel.rk4_step) gives exactly the numbers of
     the textbook RK4 on arrays of nonlinear_derivatives, over steps whose Mach leaves the
     segment of the parameters' own Mach (large drift rates and winds)."""
-    from vega_plant.dynamics import NonlinearModel
+    from vega_model.dynamics import NonlinearModel
 
     p = model_parameters(t)
     model = NonlinearModel(p)

@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vega_plant.dynamics import linear_model
-from vega_plant.parameters import model_parameters
-from vega_sil import cli
-from vega_sil.commands.linearize import parse_times
+from vega_model.dynamics import linear_model
+from vega_model.parameters import model_parameters
+from vega_cli import cli
+from vega_cli.commands.linearize import parse_times
 
 REPO = Path(__file__).resolve().parent.parent
 REQUIRED_PARAMETERS = ("v_mps", "q_pa", "mach", "s_ref_m2", "cn_alpha_per_rad", "x_cp_m",

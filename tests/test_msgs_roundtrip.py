@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 import msg_samples
-from vega_sil import rosenv
+from vega_bringup import rosenv
 
 pytestmark = pytest.mark.ros
 

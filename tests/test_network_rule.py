@@ -8,7 +8,7 @@ import sys
 import textwrap
 
 from vega_bus import network
-from vega_sil import rosenv
+from vega_bringup import rosenv
 
 _HOSTILE = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "ROS_LOCALHOST_ONLY": "0",
             "ROS_STATIC_PEERS": "127.0.0.2"}

@@ -13,7 +13,8 @@ import pytest
 
 from fixture_bags import messages_on, short_run, write_bag
 from vega_bus import topics
-from vega_sil import bagio, cli, replay
+from vega_bags import bagio, replay
+from vega_cli import cli
 
 pytestmark = pytest.mark.ros
 
@@ -50,7 +51,7 @@ def _receive_replay(bag_path, env, argv=()):
         node.create_subscription(topics.message_class(t.type_name), t.name,
                                  got[t.name].append, topics.data_qos(), raw=True)
     child = subprocess.Popen(
-        [sys.executable, "-m", "vega_sil.cli", "replay", str(bag_path), "--rate", "0",
+        [sys.executable, "-m", "vega_cli.cli", "replay", str(bag_path), "--rate", "0",
          "--wait-subscribers", str(DELIVERY_TIMEOUT_S), *argv],
         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from vega_sil.requirements import (default_requirements_path, envelope_from_trajectory,
+from vega_sim.requirements import (default_requirements_path, envelope_from_trajectory,
                                    evaluate_requirements, load_requirements)
 
 D = np.radians   # degrees → radians

@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vega_plant.flight_conditions import FlightConditions
-from vega_plant.vehicle_data import load_vehicle_data
-from vega_plant.scenario import (GustSettings, load_scenario, parse_scenario, scenario_names,
+from vega_model.flight_conditions import FlightConditions
+from vega_model.vehicle_data import load_vehicle_data
+from vega_sim.scenario import (GustSettings, load_scenario, parse_scenario, scenario_names,
                                scenario_path)
 
 SRC = Path(__file__).resolve().parent.parent / "ros2_ws" / "src"
@@ -73,8 +73,8 @@ def test_full_file(tmp_path):
 
 
 def test_setup_py_installs_the_yaml_files():
-    assert "'scenarios/*.yaml'" in (SRC / "vega_plant" / "setup.py").read_text()
-    assert "'config/*.yaml'" in (SRC / "vega_sil" / "setup.py").read_text()
+    assert "'scenarios/*.yaml'" in (SRC / "vega_sim" / "setup.py").read_text()
+    assert "'config/*.yaml'" in (SRC / "vega_sim" / "setup.py").read_text()
 
 
 def _error(tmp_path, text, name="demo"):

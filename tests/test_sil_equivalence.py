@@ -14,7 +14,7 @@ from fixture_tables import write_pd_table
 from sil_flights import (comparable_payloads, normalised, by_topic, run_layout_in,
                          vega_sil_run, write_short_scenario)
 from vega_bus import topics
-from vega_sil.closed_loop import run_scenario
+from vega_sim.closed_loop import run_scenario
 
 pytestmark = pytest.mark.ros
 
@@ -45,12 +45,12 @@ def flights(tmp_path_factory, scenario, pd_table):
 
 def test_sil_bag_is_the_in_process_simulation(flights, scenario, pd_table):
     """The SIL bag holds exactly the messages the in-process simulation
-    (:func:`vega_sil.closed_loop.run_scenario`, as messages by :mod:`vega_sil.simbag`)
+    (:func:`vega_sim.closed_loop.run_scenario`, as messages by :mod:`vega_bags.simbag`)
     produces for the same scenario, seed and table: every message of every topic, log times
     and every data byte identical — no tolerance. Excluded: the controller's measured
     ``compute_time_s`` and ``header.frame_id`` (the in-process reference leaves it empty)."""
     from rclpy.serialization import serialize_message
-    from vega_sil.simbag import simulation_messages
+    from vega_bags.simbag import simulation_messages
 
     sil = comparable_payloads(flights[0], drop_frame_id=True)
     reference = by_topic(

@@ -22,12 +22,12 @@ from vega_bus.schedule import RunInfo
 from vega_bus.timing import LoopTiming, ms_to_stamp
 from vega_gnc.controller_runtime import (STATUS_HOLD_LAST, STATUS_OK, STATUS_SAFE_ZERO,
                                          STATUS_VELOCITY_CLAMPED)
-from vega_plant.scenario import scenario_path
-from vega_sil.commands.node import find_executable
-from vega_sil.recorder import seq_of, stamp_ns
+from vega_sim.scenario import scenario_path
+from vega_bringup.executables import find_executable
+from vega_bags.recorder import seq_of, stamp_ns
 
 EXECUTABLES = {"plant": "vega_plant", "ins_sensor": "vega_plant", "tvc_actuator": "vega_plant",
-               "tvc_controller": "vega_gnc", "recorder": "vega_sil"}
+               "tvc_controller": "vega_gnc", "recorder": "vega_bags"}
 PROCESS_TIMEOUT_S = 60.0
 
 
@@ -346,8 +346,8 @@ def test_short_run_records_a_complete_bag(nodes, tmp_path, pd_table):
     """Five processes started in reverse order fly 10–11 s in lockstep; the recorder's bag
     reads back with every expected message, gap-free sequences, log time = stamp, and the
     in-process simulation's numbers."""
-    from vega_sil.bagio import META_SCENARIO, META_SEED, read_run_bag
-    from vega_sil.closed_loop import run_scenario
+    from vega_bags.bagio import META_SCENARIO, META_SEED, read_run_bag
+    from vega_sim.closed_loop import run_scenario
 
     path, table = pd_table
     scenario = _short_scenario(tmp_path, t_end_s=11.0)

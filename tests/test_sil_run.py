@@ -19,8 +19,9 @@ import yaml
 
 from fixture_tables import write_pd_table
 from sil_flights import alive
-from vega_sil import cli, orchestrate
-from vega_sil.commands import sil
+from vega_bringup import orchestrate
+from vega_cli import cli
+from vega_gnc import controller_table
 
 
 @pytest.fixture(scope="module")
@@ -174,7 +175,7 @@ def test_missing_default_table_is_named(tmp_path, capsys, no_start, monkeypatch)
     """Without --table and without an installed table: one line naming the missing file and
     the way out, exit 2."""
     missing = tmp_path / "share" / "vega_gnc" / "config" / "lpv_controller.npz"
-    monkeypatch.setattr(sil, "default_table_path", lambda: missing)
+    monkeypatch.setattr(controller_table, "default_table_path", lambda: missing)
     assert cli.main(["sil", "run", "--scenario", "thesis", "--out", str(tmp_path / "r")]) == 2
     assert capsys.readouterr().err == (
         f"vega: error: no controller table: {missing} is not installed (the LPV synthesis "
@@ -289,7 +290,7 @@ def _driver(tmp_path, tail):
     driver.write_text(textwrap.dedent(f"""
         import os, sys
         from pathlib import Path
-        from vega_sil import orchestrate
+        from vega_bringup import orchestrate
 
         layout = orchestrate.RunLayout(Path({str(tmp_path / 'run')!r}))
         layout.run_dir.mkdir()

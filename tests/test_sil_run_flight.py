@@ -1,6 +1,6 @@
 """SIL regression: ``vega sil run`` with the real nodes, each its own process.
 
-Every flight runs the real command line (``python -m vega_sil.cli sil run``) or the real node
+Every flight runs the real command line (``python -m vega_cli.cli sil run``) or the real node
 executables, on this test run's ROS_DOMAIN_ID with LOCALHOST discovery. The flights are short
 (the thesis scenario cut to 10–14 s) except one whole thesis flight (10–90 s). Equivalence with
 the in-process simulation and determinism: tests/test_sil_equivalence.py.
@@ -23,9 +23,10 @@ from fixture_tables import write_pd_table
 from sil_flights import (alive, children_of, flight_env, run_layout_in, start_vega_sil_run,
                          vega_sil_run, wait_for_sim_time, write_short_scenario)
 from vega_bus import topics
-from vega_sil import bagio, orchestrate
-from vega_sil.closed_loop import run_scenario
-from vega_sil.commands.node import find_executable
+from vega_bags import bagio
+from vega_bringup import orchestrate
+from vega_sim.closed_loop import run_scenario
+from vega_bringup.executables import find_executable
 
 pytestmark = pytest.mark.ros
 
@@ -233,7 +234,7 @@ def test_thesis_scenario(tmp_path, pd_table):
     scenario — Table 3.1 itself is not asserted for the PD. Either way the exit status is the
     report's verdict.
     """
-    from vega_sil.commands.sil import default_table_path
+    from vega_gnc.controller_table import default_table_path
 
     installed = default_table_path()
     table = installed if installed.is_file() else pd_table

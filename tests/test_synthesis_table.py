@@ -18,10 +18,10 @@ from offline_synthesis.interconnection import GRID_TIMES_S, weighted_plant
 from offline_synthesis.pipeline import DEFAULT_TABLE, rate_bounds_from_trajectory
 from offline_synthesis.weights import WEIGHT_SETS
 from vega_gnc.controller_table import load_controller_table
-from vega_plant.dynamics import OUTPUTS
-from vega_plant.parameters import default_context
-from vega_plant.scenario import load_scenario
-from vega_sil.closed_loop import run_scenario
+from vega_model.dynamics import OUTPUTS
+from vega_model.parameters import default_context
+from vega_sim.scenario import load_scenario
+from vega_sim.closed_loop import run_scenario
 
 
 @pytest.fixture(scope="module")

@@ -2,7 +2,7 @@
 
 The reference files live beside the repository, in ``../shared/reference`` (never committed
 into the project); without them these tests are skipped. The product's table — the committed
-``vega_plant/data/flight_conditions.csv``, which tests/test_flight_conditions.py proves is
+``vega_model/data/flight_conditions.csv``, which tests/test_flight_conditions.py proves is
 what the generator produces — is compared with the criteria of the trajectory issue:
 velocity at 10, 20, ..., 90 s within 2 %, peak dynamic pressure within 5 % in value and 2 s
 in time, mass within 1 %, Mach within 3 %. docs/TRAJECTORY.md lists the measured errors.
@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vega_plant.flight_conditions import FlightConditions
+from vega_model.flight_conditions import FlightConditions
 
 REFERENCE_DIR = Path(__file__).resolve().parents[1].parent / "shared" / "reference"
 TRAJECTORY_CSV = REFERENCE_DIR / "thesis_trajectory_sim.csv"

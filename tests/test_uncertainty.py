@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from vega_plant.uncertainty import UNCERTAINTY_NAMES, UncertainParameter, UncertaintySet
-from vega_plant.vehicle_data import load_vehicle_data
+from vega_model.uncertainty import UNCERTAINTY_NAMES, UncertainParameter, UncertaintySet
+from vega_model.vehicle_data import load_vehicle_data
 
 # thesis Table 2.3 (fractions), §2.12.3 (TVC 10 %), §2.12.4 (±10 ms absolute)
 TABLE = {

@@ -1,6 +1,6 @@
 """The ``vega`` command-line skeleton: sub-command discovery, errors, ``sil`` and ``node``.
 
-Run in-process through :func:`vega_sil.cli.main` (``vega node`` only on its error paths: on
+Run in-process through :func:`vega_cli.cli.main` (``vega node`` only on its error paths: on
 success it replaces the process; tests/test_environment.py runs it for real).
 """
 
@@ -9,12 +9,12 @@ import types
 
 import pytest
 
-from vega_sil import cli
+from vega_cli import cli
 
 
 def _fake_command_module(name, error):
     """A command module whose sub-command ``name`` raises ``error``."""
-    module = types.ModuleType(f"vega_sil.commands.{name}")
+    module = types.ModuleType(f"vega_cli.commands.{name}")
 
     def _fail(args):
         raise error
@@ -48,8 +48,8 @@ def test_missing_module_is_skipped(monkeypatch):
 def test_broken_module_reports_itself(monkeypatch, capsys):
     """A module that cannot register gets a sub-command that says why, in one line."""
     monkeypatch.setattr(cli, "COMMANDS", ("broken", "sil"))
-    monkeypatch.setitem(sys.modules, "vega_sil.commands.broken",
-                        types.ModuleType("vega_sil.commands.broken"))
+    monkeypatch.setitem(sys.modules, "vega_cli.commands.broken",
+                        types.ModuleType("vega_cli.commands.broken"))
     assert cli.main(["broken"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("vega: error: sub-command 'broken' is unavailable: AttributeError")
@@ -64,7 +64,7 @@ def test_broken_module_reports_itself(monkeypatch, capsys):
 def test_errors_print_one_line_and_exit_2(monkeypatch, capsys, error, message):
     """ValueError and OSError from a sub-command: ``vega: error: <message>``, exit status 2."""
     monkeypatch.setattr(cli, "COMMANDS", ("explode",))
-    monkeypatch.setitem(sys.modules, "vega_sil.commands.explode",
+    monkeypatch.setitem(sys.modules, "vega_cli.commands.explode",
                         _fake_command_module("explode", error))
     assert cli.main(["explode"]) == 2
     assert capsys.readouterr().err == f"vega: error: {message}\n"

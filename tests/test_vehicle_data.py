@@ -5,7 +5,7 @@ import math
 import pytest
 import yaml
 
-from vega_plant.vehicle_data import (FIELDS, VehicleDataError, default_vehicle_path,
+from vega_model.vehicle_data import (FIELDS, VehicleDataError, default_vehicle_path,
                                      load_vehicle_data)
 
 

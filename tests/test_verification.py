@@ -12,7 +12,7 @@ from offline_synthesis.lpv_synthesis import synthesize
 from offline_synthesis.pipeline import grid_times, rate_bounds_from_trajectory, rate_box
 from offline_synthesis.verification import frozen_point_sweep, loop_margins, time_at_velocity
 from offline_synthesis.weights import SHIPPED
-from vega_plant.parameters import default_context
+from vega_model.parameters import default_context
 
 
 @pytest.fixture(scope="module")

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from scipy.linalg import solve_continuous_lyapunov
 
-from vega_plant.wind import (DrydenTurbulence, GustProfile, WindModel, dryden_ss,
+from vega_model.wind import (DrydenTurbulence, GustProfile, WindModel, dryden_ss,
                              turbulence_params, wind_profile_mps)
-from vega_plant.vehicle_data import load_vehicle_data
+from vega_model.vehicle_data import load_vehicle_data
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@
 #   - discovery on this machine only: ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, with the
 #     deprecated ROS_LOCALHOST_ONLY and ROS_STATIC_PEERS unset.
 # ROS_DOMAIN_ID is not chosen here: `vega`, `vega-env` and the test suite pick one per run
-# (vega_sil/rosenv.py, round robin over 1..100) unless it is already set; nodes started by hand
+# (vega_bringup/rosenv.py, round robin over 1..100) unless it is already set; nodes started by hand
 # (`vega node`, or an executable's path) use 101 when none is set (vega_bus/network.py), so
 # nodes in several terminals meet. Export ROS_DOMAIN_ID=N (1..101) to choose another.
 

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .gridded_plant import GriddedPlant, PlantDataError, PlantPoint
+from offline_synthesis.gridded_plant import GriddedPlant, PlantDataError, PlantPoint
 
 __all__ = ["closed_loop", "hinf_norm", "certificate_check"]
 

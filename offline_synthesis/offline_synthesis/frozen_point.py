@@ -25,10 +25,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from vega_plant.parameters import ModelContext
+from vega_model.parameters import ModelContext
 
-from .interconnection import GRID_TIMES_S, GeneralizedPlant, weighted_plant
-from .weights import SHIPPED, SINGLE_RELAXATIONS, THESIS, WeightSet
+from offline_synthesis.interconnection import GRID_TIMES_S, GeneralizedPlant, weighted_plant
+from offline_synthesis.weights import SHIPPED, SINGLE_RELAXATIONS, THESIS, WeightSet
 
 __all__ = ["FrozenPointResult", "state_scaling", "balanced", "optimal_gamma",
            "frozen_point_gamma", "lti_study", "hinf_norm_sweep", "study_variants"]

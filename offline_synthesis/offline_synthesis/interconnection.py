@@ -25,14 +25,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vega_plant.actuator import ActuatorParams, linear_actuator_ss
-from vega_plant.delay import DelayParams, pade_ss
-from vega_plant.dynamics import STATES, linear_model
-from vega_plant.parameters import ModelContext, ModelParameters, default_context
-from vega_plant.vehicle_data import VehicleData
-from vega_plant.wind import turbulence_params, wind_profile_mps
+from vega_model.actuator import ActuatorParams, linear_actuator_ss
+from vega_model.delay import DelayParams, pade_ss
+from vega_model.dynamics import STATES, linear_model
+from vega_model.parameters import ModelContext, ModelParameters, default_context
+from vega_model.vehicle_data import VehicleData
+from vega_model.wind import turbulence_params, wind_profile_mps
 
-from .weights import THESIS, WeightSet
+from offline_synthesis.weights import THESIS, WeightSet
 
 __all__ = ["GRID_TIMES_S", "GeneralizedPlant", "weighted_plant", "plant_for_simulation",
            "weight_ss", "W_INPUTS", "W_OUTPUTS", "Y_NAMES"]
@@ -131,7 +131,7 @@ class GeneralizedPlant:
 
     def as_point(self):
         """The same plant as the synthesis engine's :class:`~.gridded_plant.PlantPoint`."""
-        from .gridded_plant import PlantPoint
+        from offline_synthesis.gridded_plant import PlantPoint
 
         return PlantPoint(self.A, self.B, self.C, self.D, self.n_w, self.n_u, self.n_e, self.n_y)
 
@@ -343,7 +343,7 @@ def weight_ss(name: str, p: ModelParameters, weights: WeightSet = THESIS,
 
     The wind channel (one state) is, for ``wind_channel = "dryden"``,
     W_w·σ_w √(2V/(πL_w)) / (s + V/L_w) — Eq. 2.53 with the airspeed V
-    (vega_plant.wind.dryden_ss, docs/MODEL.md) scaled by W_w = ``wind_sigmas``; for
+    (vega_model.wind.dryden_ss, docs/MODEL.md) scaled by W_w = ``wind_sigmas``; for
     ``"profile"``, (V_w(h) + W_w σ_w(h)) · (V/L_w)/(s + V/L_w) — DC gain covering the
     steady profile of Eq. 2.54 plus W_w σ of turbulence, corner V/L_w. σ_w is floored at
     ``wind_floor`` × the largest σ_w of Table 2.4 (the intensity's column), so that the

@@ -38,10 +38,10 @@ from dataclasses import dataclass, field, replace
 import cvxpy as cp
 import numpy as np
 
-from .certificate import certificate_check
-from .gridded_plant import GriddedPlant, PlantDataError, PlantPoint
-from .plant_scaling import PlantScaling, plant_scaling
-from .reconstruction import controller_at
+from offline_synthesis.certificate import certificate_check
+from offline_synthesis.gridded_plant import GriddedPlant, PlantDataError, PlantPoint
+from offline_synthesis.plant_scaling import PlantScaling, plant_scaling
+from offline_synthesis.reconstruction import controller_at
 
 __all__ = ["SynthesisError", "LpvSynthesisResult", "synthesize"]
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .interconnection import GRID_TIMES_S
+from offline_synthesis.interconnection import GRID_TIMES_S
 
 __all__ = ["theta_ins_over_beta", "plot_model"]
 
@@ -54,8 +54,8 @@ def plot_model(out_dir: str | Path, times_s=GRID_TIMES_S, context=None) -> list[
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from vega_plant.dynamics import linear_model
-    from vega_plant.parameters import default_context
+    from vega_model.dynamics import linear_model
+    from vega_model.parameters import default_context
 
     ctx = context or default_context()
     out = Path(out_dir)

@@ -24,14 +24,14 @@ from typing import Callable
 
 import numpy as np
 
-from .export import write_controller_table
-from .frozen_point import frozen_point_gamma
-from .gridded_plant import GriddedPlant
-from .interconnection import GRID_TIMES_S, weighted_plant
-from .lpv_synthesis import synthesize
-from .verification import (bending_rate_term, dense_certificate, frozen_point_sweep,
+from offline_synthesis.export import write_controller_table
+from offline_synthesis.frozen_point import frozen_point_gamma
+from offline_synthesis.gridded_plant import GriddedPlant
+from offline_synthesis.interconnection import GRID_TIMES_S, weighted_plant
+from offline_synthesis.lpv_synthesis import synthesize
+from offline_synthesis.verification import (bending_rate_term, dense_certificate, frozen_point_sweep,
                            loop_margins, time_at_velocity)
-from .weights import WEIGHT_SETS
+from offline_synthesis.weights import WEIGHT_SETS
 
 __all__ = ["thesis_scenario_metrics", "GRIDS", "RATE_BOXES", "grid_times",
            "rate_bounds_from_trajectory", "rate_box", "gridded_plant", "SynthesisReport",
@@ -179,9 +179,9 @@ def run_synthesis(grid: str = "refined", weights: str = "shipped", out: str | Pa
                   verify: bool = True, n_frozen: int = 121,
                   box: str = "with_frozen") -> SynthesisReport:
     """Run the chain and write the controller table (and ``<out>.json``, the report)."""
-    from vega_plant.dynamics import OUTPUTS
-    from vega_plant.parameters import default_context
-    from vega_plant.vehicle_data import load_vehicle_data
+    from vega_model.dynamics import OUTPUTS
+    from vega_model.parameters import default_context
+    from vega_model.vehicle_data import load_vehicle_data
 
     if weights not in WEIGHT_SETS:
         raise ValueError(f"--weights {weights!r}: expected one of {', '.join(WEIGHT_SETS)}")
@@ -299,10 +299,10 @@ def run_synthesis(grid: str = "refined", weights: str = "shipped", out: str | Pa
 def thesis_scenario_metrics(table_path, context, progress: Callable[[str], None] = print) -> dict:
     """Fly the exported table through the thesis scenario (θ0 = 2°, the thesis' Dryden wind,
     seeded INS noise, 10–90 s) on the linear and the nonlinear plant, in process, exactly as
-    the flight software runs it (vega_sil.closed_loop); Table 5.1 metrics with the thesis'
+    the flight software runs it (vega_sim.closed_loop); Table 5.1 metrics with the thesis'
     figures side by side."""
-    from vega_sil.closed_loop import run_scenario
-    from vega_plant.scenario import load_scenario
+    from vega_sim.closed_loop import run_scenario
+    from vega_sim.scenario import load_scenario
 
     base = load_scenario("thesis")
     out = {}

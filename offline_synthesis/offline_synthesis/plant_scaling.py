@@ -38,7 +38,7 @@ from functools import cached_property
 import numpy as np
 import scipy.linalg
 
-from .gridded_plant import GriddedPlant, PlantDataError
+from offline_synthesis.gridded_plant import GriddedPlant, PlantDataError
 
 __all__ = ["NormalisedPoint", "PlantScaling", "plant_scaling"]
 

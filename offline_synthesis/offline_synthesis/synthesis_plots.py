@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .certificate import closed_loop
-from .interconnection import weight_ss, weighted_plant, plant_for_simulation
-from .weights import WEIGHT_SETS
+from offline_synthesis.certificate import closed_loop
+from offline_synthesis.interconnection import weight_ss, weighted_plant, plant_for_simulation
+from offline_synthesis.weights import WEIGHT_SETS
 
 __all__ = ["plot_synthesis"]
 
@@ -54,9 +54,9 @@ def plot_synthesis(out_dir: str | Path, table_path: str | Path | None = None,
     import matplotlib.pyplot as plt
 
     from vega_gnc.controller_table import load_controller_table
-    from vega_plant.parameters import default_context
+    from vega_model.parameters import default_context
 
-    from .pipeline import DEFAULT_TABLE
+    from offline_synthesis.pipeline import DEFAULT_TABLE
 
     ctx = context or default_context()
     table = load_controller_table(table_path or DEFAULT_TABLE)
@@ -141,8 +141,8 @@ def plot_synthesis(out_dir: str | Path, table_path: str | Path | None = None,
     plt.close(fig_p)
 
     if simulate:
-        from vega_plant.scenario import load_scenario
-        from vega_sil.closed_loop import run_scenario
+        from vega_sim.scenario import load_scenario
+        from vega_sim.closed_loop import run_scenario
 
         fig, axes = plt.subplots(5, 1, sharex=True, figsize=(9, 12))
         base = load_scenario("thesis")

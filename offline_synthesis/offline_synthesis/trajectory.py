@@ -9,8 +9,8 @@ A pitch-plane, 3-DOF point-mass simulation over 0-110 s (docs/TRAJECTORY.md):
   that attitude, a **zero-lift gravity turn**: thrust along the velocity, α = 0, which is the
   operating point of the linearised model (thesis §2.10.1, Table 2.2).
 * **Forces.** Thrust from a breakpoint table T(t) along the body axis; aerodynamic axial
-  and normal force (thesis Eq. 2.13, body axes, :class:`vega_plant.aero.Aerodynamics`) with
-  US76 density and Mach (:mod:`vega_plant.atmosphere`); inverse-square gravity
+  and normal force (thesis Eq. 2.13, body axes, :class:`vega_model.aero.Aerodynamics`) with
+  US76 density and Mach (:mod:`vega_model.atmosphere`); inverse-square gravity
   g(h) = g_s·(R/(R+h))² over a spherical, non-rotating Earth.
 * **Mass.** ṁ = −(T + p_a·A_e)/(Isp_vac·g0): the vacuum thrust T + p_a·A_e over the vacuum
   specific impulse (thesis Table 2.1), i.e. an effective Isp that rises with altitude.
@@ -37,13 +37,13 @@ from pathlib import Path
 
 import numpy as np
 
-from vega_plant import aero as _aero_module
-from vega_plant import atmosphere as _atmosphere_module
-from vega_plant import flight_conditions as _fc_module
-from vega_plant.aero import Aerodynamics
-from vega_plant.atmosphere import atmosphere
-from vega_plant.flight_conditions import COLUMNS, format_table
-from vega_plant.vehicle_data import VehicleData, default_vehicle_path, load_vehicle_data
+from vega_model import aero as _aero_module
+from vega_model import atmosphere as _atmosphere_module
+from vega_model import flight_conditions as _fc_module
+from vega_model.aero import Aerodynamics
+from vega_model.atmosphere import atmosphere
+from vega_model.flight_conditions import COLUMNS, format_table
+from vega_model.vehicle_data import VehicleData, default_vehicle_path, load_vehicle_data
 
 __all__ = [
     "AscentModel",
@@ -67,7 +67,7 @@ RK4_STEP_S = OUTPUT_STEP_S / _SUBSTEPS
 """Integration step [s]: 0.01 s; halving it changes the velocity by < 1e-4 m/s (a test)."""
 
 _GENERATOR = "offline_synthesis.trajectory"
-_REGENERATE = "vega trajectory --out ros2_ws/src/vega_plant/vega_plant/data/flight_conditions.csv"
+_REGENERATE = "vega trajectory --out ros2_ws/src/vega_model/vega_model/data/flight_conditions.csv"
 
 
 class TrajectoryError(ValueError):
@@ -214,7 +214,7 @@ def simulate(model: AscentModel, substeps: int = _SUBSTEPS) -> dict[str, np.ndar
     Returns
     -------
     dict
-        One array per name of :data:`vega_plant.flight_conditions.COLUMNS`.
+        One array per name of :data:`vega_model.flight_conditions.COLUMNS`.
 
     Raises
     ------

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .certificate import certificate_check, closed_loop, hinf_norm
-from .interconnection import plant_for_simulation, weighted_plant
+from offline_synthesis.certificate import certificate_check, closed_loop, hinf_norm
+from offline_synthesis.interconnection import plant_for_simulation, weighted_plant
 
 __all__ = ["time_at_velocity", "bending_rate_term", "dense_certificate", "FrozenSweep",
            "frozen_point_sweep", "LoopMargins", "loop_margins"]

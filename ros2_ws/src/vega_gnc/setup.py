@@ -1,8 +1,7 @@
 """Build script of the ament_python package vega_gnc (layout of ``ros2 pkg create``).
 
-Executables go to ``lib/vega_gnc`` (see setup.cfg) so that ``ros2 run vega_gnc EXE`` and
-``vega node vega_gnc EXE`` find them; files under ``vega_gnc/data/`` ship inside the Python
-package; ``package.xml`` and ``config/*`` (if present) are installed to ``share/vega_gnc``.
+Executables go to ``lib/vega_gnc`` (setup.cfg), where ``ros2 run vega_gnc EXE`` and
+``vega node vega_gnc EXE`` find them.
 """
 from glob import glob
 
@@ -22,20 +21,13 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
-    package_data={package_name: ['data/*']},
+    package_data={package_name: []},
     data_files=data_files,
     install_requires=['setuptools'],
     zip_safe=True,
     maintainer='VEGA TVC maintainers',
     maintainer_email='maintainers@vega-tvc.invalid',
-    description=(
-        'Flight side of the VEGA TVC loop: controller-table loader, gain scheduler, discrete '
-        'controller runtime, input validation and the TVC controller node.'
-    ),
+    description='Flight side of the VEGA TVC loop: controller-table loader, on-board controller runtime, its step class at the avionics timing, and the tvc_controller node.',
     license='Apache-2.0',
-    entry_points={
-        'console_scripts': [
-            'tvc_controller = vega_gnc.controller_node:main',
-        ],
-    },
+    entry_points={'console_scripts': ['tvc_controller = vega_gnc.controller_node:main']},
 )

@@ -1,9 +1,7 @@
 """Build script of the ament_python package vega_plant (layout of ``ros2 pkg create``).
 
-Executables go to ``lib/vega_plant`` (see setup.cfg) so that ``ros2 run vega_plant EXE`` and
-``vega node vega_plant EXE`` find them; files under ``vega_plant/data/`` and the scenarios
-``vega_plant/scenarios/*.yaml`` ship inside the Python package;
-``package.xml`` and ``config/*`` (if present) are installed to ``share/vega_plant``.
+Executables go to ``lib/vega_plant`` (setup.cfg), where ``ros2 run vega_plant EXE`` and
+``vega node vega_plant EXE`` find them.
 """
 from glob import glob
 
@@ -23,23 +21,13 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
-    package_data={package_name: ['data/*', 'scenarios/*.yaml']},
+    package_data={package_name: []},
     data_files=data_files,
     install_requires=['setuptools'],
     zip_safe=True,
     maintainer='VEGA TVC maintainers',
     maintainer_email='maintainers@vega-tvc.invalid',
-    description=(
-        'Truth side of the VEGA TVC loop: vehicle dynamics (rigid body, bending, '
-        'tail-wags-dog), aerodynamics, wind, TVC actuator and INS sensor models, and the '
-        'nodes that run them.'
-    ),
+    description="Truth side of the VEGA TVC SIL: the thin ROS 2 nodes plant, ins_sensor and tvc_actuator over the simulation's step classes.",
     license='Apache-2.0',
-    entry_points={
-        'console_scripts': [
-            'plant = vega_plant.nodes:plant_main',
-            'ins_sensor = vega_plant.nodes:ins_main',
-            'tvc_actuator = vega_plant.nodes:actuator_main',
-        ],
-    },
+    entry_points={'console_scripts': ['plant = vega_plant.nodes:plant_main', 'ins_sensor = vega_plant.nodes:ins_main', 'tvc_actuator = vega_plant.nodes:actuator_main']},
 )

@@ -29,7 +29,7 @@ from __future__ import annotations
 import time
 from typing import Callable, Iterable, Mapping
 
-from .topics import ACTUATOR, CLOCK, INS, READY, RECORDED, RUN, TRUTH, TVC_CMD, control_qos
+from vega_bus.topics import ACTUATOR, CLOCK, INS, READY, RECORDED, RUN, TRUTH, TVC_CMD, control_qos
 
 __all__ = ["PARTICIPANTS", "SUBSCRIBERS", "PUBLISHERS", "StartBarrier"]
 

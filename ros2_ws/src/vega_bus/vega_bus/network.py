@@ -2,7 +2,7 @@
 
 One source of truth for the rule (design/ENVIRONMENT.md): ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is
 LOCALHOST, and the variables that could add peers beyond it (``ROS_STATIC_PEERS``) or override
-it (``ROS_LOCALHOST_ONLY``, deprecated in Jazzy) are removed. ``vega_sil.rosenv`` applies it to
+it (``ROS_LOCALHOST_ONLY``, deprecated in Jazzy) are removed. ``vega_bringup.rosenv`` applies it to
 every process the tools start; every node applies it to itself before ``rclpy.init``
 (:class:`vega_bus.shell.Shell`), so that a node started directly — ``ros2 run`` on a full ROS
 install, or the executable's path — obeys it too, whatever the shell exported.
@@ -23,7 +23,7 @@ REMOVED_VARIABLES = ("ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS")
 
 HAND_START_DOMAIN_ID = 101
 """ROS_DOMAIN_ID of nodes started by hand when none is exported: one fixed id, so that nodes
-started in separate terminals meet; automated runs never get it (vega_sil.rosenv)."""
+started in separate terminals meet; automated runs never get it (vega_bringup.rosenv)."""
 
 
 def enforce(environ: MutableMapping[str, str] | None = None) -> bool:

@@ -1,7 +1,7 @@
 """Plain records of messages that cross the flight/truth boundary, stamps in integer ms.
 
-The INS measurement is produced on the truth side (:class:`vega_plant.sim_nodes.InsNode`) and
-consumed on the flight side (:class:`vega_gnc.sim_controller.ControllerNode`); neither package
+The INS measurement is produced on the truth side (:class:`vega_sim.device_steps.InsStep`) and
+consumed on the flight side (:class:`vega_gnc.controller_step.ControllerStep`); neither package
 imports the other, so its record lives here, in the contract both share.
 """
 

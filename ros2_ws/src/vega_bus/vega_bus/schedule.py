@@ -30,7 +30,7 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass, fields
 
-from .timing import LoopTiming
+from vega_bus.timing import LoopTiming
 
 __all__ = ["RunInfo", "RECORDER_REPORT_FRAMES", "RECORDER_WINDOW_FRAMES", "CLOCK_EVERY_FRAMES",
            "clock_frames"]
@@ -133,7 +133,7 @@ class RunInfo:
 
     def expected_counts(self) -> dict[str, int]:
         """Messages of a complete run by topic (:mod:`vega_bus.topics` names)."""
-        from .topics import ACTUATOR, CLOCK, INS, TRUTH, TVC_CMD
+        from vega_bus.topics import ACTUATOR, CLOCK, INS, TRUTH, TVC_CMD
 
         n = self.n_frames
         return {TRUTH.name: n + 1, CLOCK.name: len(self.clock_frames()), INS.name: n,

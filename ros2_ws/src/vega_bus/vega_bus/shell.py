@@ -32,7 +32,7 @@ import threading
 import time
 from typing import Any, Callable
 
-from . import network
+from vega_bus import network
 
 __all__ = ["EXIT_OK", "EXIT_RUN_FAILURE", "EXIT_BAD_INPUT", "NodeExit", "Stopped", "Shell",
            "RecorderProgress", "run_node", "SeqCheck"]
@@ -218,10 +218,17 @@ class Shell:
             raise NodeExit(EXIT_BAD_INPUT, f"parameter '{name}': {problem} (got {value!r})")
         return value
 
+    def run_params(self) -> tuple[str, int]:
+        """The ``scenario`` (name or YAML path) and ``seed`` (−1: the scenario's) parameters."""
+        name = self.param("scenario", "nominal",
+                          lambda v: None if v.strip() else "must name a scenario or a YAML file")
+        seed = self.param("seed", -1, lambda v: None if v >= -1 else "must be >= 0, or -1")
+        return name, seed
+
     def common_params(self) -> tuple[tuple[str, ...], float]:
         """The ``participants`` and ``barrier_timeout_s`` parameters (and ``stall_timeout_s``,
         which sets :attr:`stall_timeout_s`)."""
-        from .barrier import PARTICIPANTS
+        from vega_bus.barrier import PARTICIPANTS
 
         participants = tuple(self.param(
             "participants", list(PARTICIPANTS),
@@ -237,7 +244,7 @@ class Shell:
         """Run the start barrier (:class:`vega_bus.barrier.StartBarrier`) for ``publishers``
         and every subscription of the node; :class:`NodeExit` (1) naming the missing
         participants on timeout."""
-        from .barrier import StartBarrier
+        from vega_bus.barrier import StartBarrier
 
         barrier = StartBarrier(self.node, participants, publishers,
                                [s for s in self.node.subscriptions])
@@ -299,7 +306,7 @@ class RecorderProgress:
     def __init__(self, shell: Shell, participants):
         from std_msgs.msg import UInt32
 
-        from .topics import RECORDED, data_qos
+        from vega_bus.topics import RECORDED, data_qos
 
         self.count = 0
         self._sub = None

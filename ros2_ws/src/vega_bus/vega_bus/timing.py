@@ -127,7 +127,7 @@ class LoopTiming:
         Parameters
         ----------
         data
-            Vehicle data (:class:`vega_plant.vehicle_data.VehicleData`, or any mapping of
+            Vehicle data (:class:`vega_model.vehicle_data.VehicleData`, or any mapping of
             those dotted keys to numbers).
         actuator_delay_deviation_s
             Added to the actuator latency: the ``delay_s`` deviation of the uncertainty set

@@ -11,7 +11,7 @@ Start-up, before the start barrier (bad input → one line, exit 2):
    ``dt_s`` must be the controller period.
 
 Loop: every ``/vega/ins`` measurement is checked (sequence without gap, else exit 1) and
-handed to :class:`vega_gnc.sim_controller.ControllerNode` — the same step the in-process
+handed to :class:`vega_gnc.controller_step.ControllerStep` — the same step the in-process
 simulation runs. A measurement whose sample time is on the controller period (20 ms) yields
 one ``/vega/tvc_cmd`` command, stamped arrival + computing latency. Input validation is the
 runtime's (:mod:`vega_gnc.controller_runtime`): NaN/inf fields, ``valid = false``, a sample
@@ -27,7 +27,6 @@ The node exits 0 after the run's last measurement (sample t_end − frame).
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 from vega_bus import topics
@@ -36,17 +35,9 @@ from vega_bus.schedule import RunInfo
 from vega_bus.shell import EXIT_BAD_INPUT, NodeExit, Shell, run_node
 from vega_bus.timing import ms_to_stamp
 
-__all__ = ["default_table_path", "to_sample", "main"]
+__all__ = ["to_sample", "main"]
 
 _NS_PER_MS = 1_000_000
-
-
-def default_table_path() -> str:
-    """``share/vega_gnc/config/lpv_controller.npz`` of the installed package."""
-    from ament_index_python.packages import get_package_share_directory
-
-    return os.path.join(get_package_share_directory("vega_gnc"), "config",
-                        "lpv_controller.npz")
 
 
 def _ms_floor(stamp) -> tuple[int, bool]:
@@ -68,8 +59,8 @@ def _controller(shell: Shell) -> None:
     from std_msgs.msg import String
     from vega_msgs.msg import InsMeasurement, TvcCommand
 
-    from .controller_table import load_controller_table
-    from .sim_controller import ControllerNode
+    from vega_gnc.controller_table import default_table_path, load_controller_table
+    from vega_gnc.controller_step import ControllerStep
 
     node = shell.node
     path = shell.param("controller_table", "")
@@ -94,7 +85,7 @@ def _controller(shell: Shell) -> None:
                      barrier_timeout, failure="start barrier timed out")
     info = infos[-1]
     try:
-        ctrl = ControllerNode(table, info.timing)
+        ctrl = ControllerStep(table, info.timing)
     except ValueError as exc:
         raise NodeExit(EXIT_BAD_INPUT, f"{path}: {exc}") from None
 

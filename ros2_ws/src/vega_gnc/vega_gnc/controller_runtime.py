@@ -31,7 +31,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .controller_table import ControllerTable
+from vega_gnc.controller_table import ControllerTable
 
 __all__ = ["STATUS_OK", "STATUS_HOLD_LAST", "STATUS_VELOCITY_CLAMPED", "STATUS_SAFE_ZERO",
            "STATUS_LIMITED", "Measurement", "Command", "RuntimeLimits", "ControllerRuntime"]

@@ -27,6 +27,7 @@ from typing import Any, Mapping
 import numpy as np
 
 __all__ = [
+    "default_table_path",
     "FORMAT_VERSION", "MEASUREMENT_NAMES", "REQUIRED_METADATA", "ControllerTable",
     "ControllerTableError", "load_controller_table", "validate_arrays",
 ]
@@ -225,3 +226,20 @@ def load_controller_table(path: str | Path) -> ControllerTable:
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
         raise _fail(p, f"not a readable controller table ({type(exc).__name__})") from None
     return validate_arrays(p, arrays)
+
+
+def default_table_path() -> Path:
+    """The installed controller table ``share/vega_gnc/config/lpv_controller.npz``.
+
+    Raises
+    ------
+    ValueError
+        If the package ``vega_gnc`` is not in the ament index (workspace not built).
+    """
+    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+
+    try:
+        return Path(get_package_share_directory("vega_gnc")) / "config" / "lpv_controller.npz"
+    except PackageNotFoundError:
+        raise ValueError("package 'vega_gnc' not found in the ament index; did 'make setup' "
+                         "build it?") from None

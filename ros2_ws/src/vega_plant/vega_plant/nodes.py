@@ -1,20 +1,20 @@
 """The truth-side SIL nodes: ``plant``, ``ins_sensor``, ``tvc_actuator`` (thin ROS shells).
 
 Each node builds its step object exactly as the in-process simulation does
-(:mod:`vega_plant.sim_setup`) and only moves values between it and the messages
+(:mod:`vega_sim.assembly`) and only moves values between it and the messages
 (:mod:`vega_bus.topics`), in the lockstep of :mod:`vega_bus.schedule`:
 
 * ``plant`` (time master): publishes the run description on ``/vega/run``, waits for the start
   barrier, then for k = 0 … n: truth(t_k) on ``/vega/truth`` (and /clock = t_k on the frames
   of :meth:`RunInfo.clock_frames`), then waits for the actuator's frame k and integrates it
-  (:class:`vega_plant.sim_plant.PlantNode`).
+  (:class:`vega_sim.plant_step.PlantStep`).
   ``realtime: true`` paces the frames to the wall clock.
 * ``ins_sensor``: each truth(t_k), k < n → one measurement
-  (:class:`vega_plant.sim_nodes.InsNode`; model parameters of the run's
-  :func:`vega_plant.sim_plant.parameter_track`, as in the in-process run).
+  (:class:`vega_sim.device_steps.InsStep`; model parameters of the run's
+  :func:`vega_sim.plant_step.parameter_track`, as in the in-process run).
 * ``tvc_actuator``: frame k as soon as it holds every command that applies within it
   (:meth:`vega_bus.schedule.RunInfo.commands_needed`; it runs up to three frames ahead of the
-  plant) (:class:`vega_plant.sim_nodes.ActuatorNode`).
+  plant) (:class:`vega_sim.device_steps.ActuatorStep`).
 
 Parameters (one YAML for all nodes, ``/**: ros__parameters:``; unused keys are ignored):
 ``scenario`` (name or YAML path, default "nominal"), ``seed`` (−1: the scenario's), ``realtime``
@@ -28,36 +28,22 @@ import sys
 import time
 
 from vega_bus import topics
-from vega_bus.schedule import RECORDER_WINDOW_FRAMES, RunInfo
+from vega_bus.schedule import RECORDER_WINDOW_FRAMES
 from vega_bus.shell import (EXIT_BAD_INPUT, EXIT_RUN_FAILURE, NodeExit, SeqCheck, Shell,
                             run_node)
 from vega_bus.timing import ms_to_stamp, stamp_to_ms
+from vega_sim.run import load_run as run_of
 
 __all__ = ["load_run", "plant_main", "ins_main", "actuator_main"]
 
 
 def load_run(shell: Shell):
-    """The ``scenario`` and ``seed`` parameters → (Scenario, seed, RunInfo).
-
-    Raises
-    ------
-    NodeExit
-        (2) one line on an unknown or invalid scenario or seed.
-    """
-    from .scenario import load_scenario
-    from .sim_setup import loop_timing
-
-    name = shell.param("scenario", "nominal",
-                       lambda v: None if v.strip() else "must name a scenario or a YAML file")
-    seed = shell.param("seed", -1, lambda v: None if v >= -1 else "must be >= 0, or -1")
+    """The ``scenario`` and ``seed`` parameters → (Scenario, seed, RunInfo)
+    (:func:`vega_sim.run.load_run`); :class:`NodeExit` (2) on bad input."""
     try:
-        scenario = load_scenario(name)
-        seed = scenario.seed if seed == -1 else seed
-        info = RunInfo(scenario.name, seed, scenario.t_start_ms, scenario.t_end_ms,
-                       loop_timing(scenario)).check()
+        return run_of(*shell.run_params())
     except (ValueError, OSError) as exc:
         raise NodeExit(EXIT_BAD_INPUT, " ".join(str(exc).split())) from None
-    return scenario, seed, info
 
 
 def _stamp(header_stamp, t_ms: int) -> None:
@@ -83,7 +69,7 @@ def _plant(shell: Shell) -> None:
     from std_msgs.msg import String
     from vega_msgs.msg import ActuatorState, VehicleState
 
-    from .sim_setup import make_plant
+    from vega_sim.assembly import make_plant
 
     node = shell.node
     scenario, seed, info = load_run(shell)
@@ -167,9 +153,9 @@ def plant_main(argv=None) -> None:
 def _ins(shell: Shell) -> None:
     from vega_msgs.msg import InsMeasurement, VehicleState
 
-    from .parameters import default_context
-    from .sim_plant import TruthOut, parameter_track
-    from .sim_setup import make_ins
+    from vega_model.parameters import default_context
+    from vega_sim.plant_step import TruthOut, parameter_track
+    from vega_sim.assembly import make_ins
 
     node = shell.node
     scenario, seed, info = load_run(shell)
@@ -217,7 +203,7 @@ def ins_main(argv=None) -> None:
 def _actuator(shell: Shell) -> None:
     from vega_msgs.msg import ActuatorState, TvcCommand
 
-    from .sim_setup import make_actuator
+    from vega_sim.assembly import make_actuator
 
     node = shell.node
     scenario, _seed, info = load_run(shell)
@@ -262,7 +248,7 @@ def _actuator(shell: Shell) -> None:
 
 
 class _Command:
-    """A received command as :meth:`ActuatorNode.receive` reads it."""
+    """A received command as :meth:`ActuatorStep.receive` reads it."""
 
     __slots__ = ("stamp_ms", "seq", "deflection_cmd_rad")
 

@@ -1,0 +1,237 @@
+"""The report of a run: bag → JSON + Markdown + PNG plots, and the verdict.
+
+:func:`write_report` is what ``vega sil run`` calls after a flight (and ``vega check BAG
+--report DIR``): it checks the bag (:func:`vega_bags.bagcheck.check_bag`) and writes into the
+report directory
+
+* ``report.json`` — the verdict (:meth:`vega_bags.bagcheck.BagCheck.to_dict`, the same as
+  ``vega check --json``) plus the names of the plots;
+* ``report.md`` — run metadata, the requirement table (thesis Table 5.1 form, with margins
+  and the thesis' figures), the health checks, the controller status counts, the plots;
+* the plots (matplotlib, Agg backend): :data:`PLOTS`.
+
+It returns the :class:`~vega_bags.bagcheck.BagCheck` (``.passed``, ``.exit_code``). A bad bag
+raises :class:`vega_bags.bagio.BagError` (one line) before anything is written.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from vega_bags import bagio
+from vega_bags.bagcheck import BagCheck, check_bag
+from vega_sim.requirements import RequirementSpec
+
+__all__ = ["PLOTS", "write_report", "markdown"]
+
+PLOTS = {
+    "attitude.png": "pitch attitude θ: truth and INS",
+    "drift.png": "lateral drift z and drift rate ż with their limits",
+    "q_alpha.png": "Qα over Mach against its envelope, and over time",
+    "nozzle.png": "nozzle angle β (actuator samples) against its limit, and the command",
+    "schedule.png": "velocity: truth, INS and the controller's scheduling velocity",
+    "status.png": "controller status flags (TvcCommand.status)",
+}
+"""Plot file → what it shows."""
+
+_STATUS_NAMES = ("OK", "HOLD_LAST", "VELOCITY_CLAMPED", "SAFE_ZERO", "LIMITED")
+
+
+def _row(*cells) -> str:
+    """A Markdown table row (``|`` inside a cell escaped)."""
+    return "| " + " | ".join(str(c).replace("|", "\\|") for c in cells) + " |"
+
+
+def _fmt(x: float, scale: float = 1.0) -> str:
+    return f"{x * scale:.6g}" if math.isfinite(x) else str(x)
+
+
+def markdown(check: BagCheck, plots=PLOTS) -> str:
+    """The Markdown report of a check (tables, metadata, plots by relative file name)."""
+    meta = check.metadata
+    lines = [f"# Run report: {meta.get(bagio.META_SCENARIO, 'unknown scenario')}", "",
+             f"**Verdict: {'PASS' if check.passed else 'FAIL'}**", ""]
+    lines += [f"- {f}" for f in check.failures]
+    if check.failures:
+        lines.append("")
+    lines += ["## Run", "", "| item | value |", "|---|---|",
+              f"| bag | `{check.bag}` |"]
+    for key, label in ((bagio.META_SCENARIO, "scenario"), (bagio.META_SEED, "seed"),
+                       (bagio.META_CONTROLLER_TABLE, "controller table"),
+                       (bagio.META_CONTROLLER_TABLE_SHA256, "table SHA-256"),
+                       (bagio.META_GIT_REVISION, "git revision")):
+        lines.append(_row(label, f"`{meta.get(key, '—')}`"))
+    r = check.result
+    if r.t_ms.size:
+        lines.append(f"| span | {r.t_ms[0] / 1e3:.3f} … {r.t_ms[-1] / 1e3:.3f} s |")
+    lines += ["", "## Requirements (thesis Table 3.1; figures as in Table 5.1)", "",
+              _row("requirement", "metric", "value", "bound", "margin", "at [s]", "pass",
+                   "thesis Table 5.1"),
+              "|---|---|---|---|---|---|---|---|"]
+    for q in check.requirements.results:
+        s, u = q.display_scale, q.display_unit
+        op = "≤" if q.key == "q_alpha" else "<"
+        thesis = "" if q.thesis is None else f"{_fmt(q.thesis.value, s)} {u}"
+        lines.append(_row(q.requirement, q.metric, f"{_fmt(q.value, s)} {u}",
+                          f"{op} {_fmt(q.bound, s)} {u}", f"{_fmt(q.margin, s)} {u}",
+                          f"{q.time_s:.3f}", "yes" if q.passed else "**NO**", thesis))
+    notes = [f"{q.metric}: thesis {q.thesis.note}" for q in check.requirements.results
+             if q.thesis is not None and q.thesis.note]
+    rep = check.requirements
+    if rep.command_peak_rad is not None:
+        notes.append(f"with the thesis' definitions (command, signed integral): max |β_cmd| = "
+                     f"{math.degrees(rep.command_peak_rad):.6g} deg, ∫β_cmd dt = "
+                     f"{math.degrees(rep.command_signed_integral_rad_s):.6g} deg·s")
+    lines += [""] + [f"- {n}" for n in notes]
+    lines += ["", "## Health", "", "| check | value | limit | pass | detail |",
+              "|---|---|---|---|---|"]
+    for h in check.health:
+        lines.append(_row(h.check, h.value, h.limit, "yes" if h.passed else "**NO**",
+                          h.detail))
+    counts = check.status_counts()
+    lines += ["", "Controller status: " + (", ".join(f"{k} {v}" for k, v in counts.items())
+                                          or "no commands"), "", "## Plots", ""]
+    for name, what in plots.items():
+        lines += [f"### {what}", "", f"![{what}]({name})", ""]
+    return "\n".join(lines)
+
+
+def _plot(check: BagCheck, spec: RequirementSpec | None, out: Path) -> list[Path]:
+    """Write the :data:`PLOTS` into ``out``; return their paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from vega_sim.requirements import load_requirements
+
+    spec = spec if spec is not None else load_requirements()
+    r = check.result
+    t, ta, tc = r.t_ms / 1e3, r.act_t_ms / 1e3, r.cmd_stamp_ms / 1e3
+    ti = r.ins_stamp_ms / 1e3
+    title = (f"{check.metadata.get(bagio.META_SCENARIO, '?')}, seed "
+             f"{check.metadata.get(bagio.META_SEED, '?')}")
+    figs = {}
+
+    def limits(ax, bound, label):
+        ax.axhline(bound, color="r", ls="--", lw=0.8, label=label)
+        ax.axhline(-bound, color="r", ls="--", lw=0.8)
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    ax.plot(t, np.degrees(r.theta_rad), label="θ truth")
+    if ti.size:
+        ax.plot(ti, np.degrees(r.ins_theta_rad), lw=0.6, alpha=0.7,
+                label="θ INS (at its stamp)")
+    ax.set_ylabel("θ [deg]")
+    figs["attitude.png"] = fig
+
+    fig, (a1, a2) = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
+    a1.plot(t, r.z_m, label="z")
+    limits(a1, spec.drift_m, f"|z| < {spec.drift_m:g} m")
+    a1.set_ylim(-1.2 * spec.drift_m, 1.2 * spec.drift_m)
+    a1.set_ylabel("z [m]")
+    a2.plot(t, r.z_dot_mps, label="ż")
+    limits(a2, spec.drift_rate_mps, f"|ż| < {spec.drift_rate_mps:g} m/s")
+    a2.set_ylim(-1.2 * spec.drift_rate_mps, 1.2 * spec.drift_rate_mps)
+    a2.set_ylabel("ż [m/s]")
+    a1.legend(fontsize=8)
+    a2.legend(fontsize=8)
+    figs["drift.png"] = fig
+
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 7))
+    kpa_deg = 180.0 / math.pi / 1000.0  # Pa·rad → kPa·deg
+    mach = np.linspace(0.0, max(float(np.nanmax(r.mach)) if r.mach.size else 1.0, 0.1), 400)
+    env = spec.envelope(mach) * kpa_deg
+    a1.plot(r.mach, r.q_alpha_pa_rad * kpa_deg, lw=0.8, label="Qα")
+    a1.plot(mach, env, "r--", lw=0.8, label="envelope (config/requirements.yaml)")
+    a1.plot(mach, -env, "r--", lw=0.8)
+    a1.set_xlabel("Mach [-]")
+    a1.set_ylabel("Qα [kPa·deg]")
+    a1.legend(fontsize=8)
+    a2.plot(t, r.q_alpha_pa_rad * kpa_deg, lw=0.8, label="Qα")
+    a2.plot(t, spec.envelope(r.mach) * kpa_deg, "r--", lw=0.8, label="envelope(Mach(t))")
+    a2.plot(t, -spec.envelope(r.mach) * kpa_deg, "r--", lw=0.8)
+    a2.set_ylabel("Qα [kPa·deg]")
+    a2.legend(fontsize=8)
+    figs["q_alpha.png"] = fig
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    ax.plot(ta, np.degrees(r.beta_rad), lw=0.8, label="β actuator")
+    if tc.size:
+        ax.step(tc, np.degrees(r.cmd_rad), where="post", lw=0.6, alpha=0.8,
+                label="β command (at its stamp)")
+    limits(ax, math.degrees(spec.deflection_rad),
+           f"|β| < {math.degrees(spec.deflection_rad):g}°")
+    ax.set_ylabel("β [deg]")
+    figs["nozzle.png"] = fig
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    ax.plot(t, r.v_mps, label="v truth")
+    if ti.size:
+        ax.plot(ti, r.ins_v_mps, lw=0.6, label="v INS")
+    if tc.size:
+        ax.step(tc, r.cmd_v_mps, where="post", lw=0.8, label="scheduling velocity (command)")
+    ax.set_ylabel("v [m/s]")
+    figs["schedule.png"] = fig
+
+    fig, ax = plt.subplots(figsize=(8, 3.5))
+    if tc.size:
+        ax.step(tc, r.cmd_status, where="post", label="TvcCommand.status")
+    ax.set_yticks(range(len(_STATUS_NAMES)), _STATUS_NAMES)
+    ax.set_ylim(-0.5, len(_STATUS_NAMES) - 0.5)
+    figs["status.png"] = fig
+
+    paths = []
+    for name, fig in figs.items():
+        for ax in fig.axes:
+            ax.grid(True, alpha=0.3)
+            if ax.get_xlabel() == "":
+                ax.set_xlabel("t [s]")
+            if not ax.get_legend() and ax.get_legend_handles_labels()[0]:
+                ax.legend(fontsize=8)
+        fig.axes[0].set_title(f"{PLOTS[name]} ({title})", fontsize=9)
+        fig.tight_layout()
+        path = out / name
+        fig.savefig(path, dpi=100)
+        plt.close(fig)
+        paths.append(path)
+    return paths
+
+
+def write_report(bag: str | Path, out_dir: str | Path,
+                 spec: RequirementSpec | None = None) -> BagCheck:
+    """Check a run bag and write its report (JSON, Markdown, plots) into ``out_dir``.
+
+    Parameters
+    ----------
+    bag
+        Run bag directory.
+    out_dir
+        Report directory (created if needed; files in it are overwritten).
+    spec
+        Requirement bounds (default: the shipped file).
+
+    Returns
+    -------
+    BagCheck
+        The verdict (``.passed``, ``.exit_code``, ``.table()`` for the console).
+
+    Raises
+    ------
+    BagError
+        Missing, corrupt or foreign bag (one line); nothing is written then.
+    """
+    check = check_bag(bag, spec)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    plots = _plot(check, spec, out)
+    data = check.to_dict()
+    data["plots"] = {p.name: PLOTS[p.name] for p in plots}
+    (out / "report.json").write_text(json.dumps(data, indent=2, ensure_ascii=False) + "\n",
+                                     encoding="utf-8")
+    (out / "report.md").write_text(markdown(check) + "\n", encoding="utf-8")
+    return check

@@ -1,0 +1,149 @@
+"""Planning one SIL run: validate its arguments, lay out its run directory, write its files.
+
+Nothing here starts a process: :func:`plan_run` checks the scenario, seed, controller table,
+output and node executables and returns a :class:`RunPlan`; :func:`write_run_files` writes the
+parameters file every node reads and the paste-ready node commands. ``vega sil run`` then hands
+the plan to :class:`vega_bringup.orchestrate.Supervisor`.
+"""
+
+import os
+from pathlib import Path
+
+__all__ = ["DEFAULT_SCENARIO", "DEFAULT_OUT", "RunPlan", "plan_run", "write_run_files"]
+
+DEFAULT_SCENARIO = "nominal"
+"""Scenario flown when none is given (the whole 0–100 s flight)."""
+
+DEFAULT_OUT = "bags"
+"""Parent directory of the run directories (relative to the working directory)."""
+
+class RunPlan:
+    """Everything a run needs, validated (built by :func:`plan_run`).
+
+    Attributes: ``scenario`` (the loaded :class:`~vega_sim.scenario.Scenario`), ``seed``
+    (effective), ``params`` (:class:`~vega_bringup.orchestrate.RunParameters`), ``layout``
+    (:class:`~vega_bringup.orchestrate.RunLayout`), ``nodes`` ((spec, command) per node),
+    ``domain_id``, ``lines`` (the paste-ready command lines).
+    """
+
+    def __init__(self, scenario, seed, params, layout, nodes, domain_id, lines):
+        self.scenario = scenario
+        self.seed = seed
+        self.params = params
+        self.layout = layout
+        self.nodes = nodes
+        self.domain_id = domain_id
+        self.lines = lines
+
+
+def _checked_seed(seed):
+    """The seed as an int >= 0 (None stays None); ValueError naming ``--seed`` otherwise."""
+    if seed is None:
+        return None
+    text = str(seed).strip()
+    if isinstance(seed, bool) or not text.isdigit():
+        raise ValueError(f"--seed must be an integer >= 0, got {seed!r}")
+    return int(text)
+
+
+def _resolve_scenario(text):
+    """(scenario, parameter value): a shipped name stays a name, a file becomes absolute."""
+    from vega_sim.scenario import load_scenario
+
+    scenario = load_scenario(text)
+    is_path = text.endswith((".yaml", ".yml")) or "/" in text
+    return scenario, (str(Path(text).resolve()) if is_path else text)
+
+
+def _resolve_table(path, scenario):
+    """Absolute path of a controller table that loads and fits the scenario's timing."""
+    from vega_gnc.controller_table import default_table_path, load_controller_table
+    from vega_sim.closed_loop import make_controller
+
+    if path is None:
+        table_path = default_table_path()
+        if not table_path.is_file():
+            raise ValueError(f"no controller table: {table_path} is not installed (the LPV "
+                             f"synthesis has not exported it); pass --table FILE")
+    else:
+        table_path = Path(path).resolve()
+    table = load_controller_table(table_path)
+    make_controller(scenario, table)  # the table's sample time must be the controller period
+    return table_path
+
+
+def plan_run(scenario="nominal", seed=None, out=DEFAULT_OUT, realtime=False, table=None,
+             run_id=None, domain_id=None, barrier_timeout_s=None):
+    """Validate the arguments of a run and build its plan; nothing is written or started.
+
+    Parameters
+    ----------
+    scenario : str
+        Shipped scenario name or YAML path.
+    seed : int, optional
+        Seed (>= 0) overriding the scenario's.
+    out : str or Path
+        Parent directory of the run directory.
+    realtime : bool
+        Pace to the wall clock.
+    table : str or Path, optional
+        Controller table (default: the installed one).
+    run_id : str, optional
+        Run directory name (default: :func:`vega_bringup.orchestrate.default_run_id`).
+    domain_id : int, optional
+        The run's ROS_DOMAIN_ID (default: this process's).
+    barrier_timeout_s : float, optional
+        Start-barrier timeout (default: :data:`~vega_bringup.orchestrate.DEFAULT_BARRIER_TIMEOUT_S`).
+
+    Raises
+    ------
+    ValueError
+        One line naming the bad argument (scenario, seed, table, output, executable).
+    """
+    from vega_bringup import orchestrate
+    from vega_bringup.executables import find_executable
+
+    seed = _checked_seed(seed)
+    loaded, scenario_param = _resolve_scenario(str(scenario))
+    effective_seed = loaded.seed if seed is None else seed
+    table_path = _resolve_table(table, loaded)
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: exists and is not a directory")
+    run_id = run_id if run_id is not None else orchestrate.default_run_id(loaded.name,
+                                                                          effective_seed)
+    if not run_id or "/" in run_id or run_id in (".", ".."):
+        raise ValueError(f"--run-id {run_id!r}: must be a plain directory name")
+    layout = orchestrate.RunLayout((out / run_id).resolve())
+    if layout.run_dir.exists():
+        raise ValueError(f"output {layout.run_dir} already exists (runs never overwrite one; "
+                         f"choose another --out or --run-id)")
+    params = orchestrate.RunParameters(
+        scenario=scenario_param, seed=-1 if seed is None else seed, realtime=bool(realtime),
+        controller_table=str(table_path), bag_path=str(layout.bag_dir),
+        barrier_timeout_s=(orchestrate.DEFAULT_BARRIER_TIMEOUT_S if barrier_timeout_s is None
+                           else float(barrier_timeout_s)))
+    nodes = [(spec, orchestrate.node_command(find_executable(spec.package, spec.executable),
+                                             layout.params_file))
+             for spec in orchestrate.PARTICIPANTS]
+    domain_id = int(os.environ["ROS_DOMAIN_ID"]) if domain_id is None else int(domain_id)
+    env_script = orchestrate.environment_script()
+    lines = [orchestrate.shell_line(command, domain_id, env_script) for _, command in nodes]
+    return RunPlan(loaded, effective_seed, params, layout, nodes, domain_id, lines)
+
+
+def write_run_files(plan):
+    """Create the run directory with the parameters file and the node commands."""
+    from vega_bringup import orchestrate
+
+    plan.layout.run_dir.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        plan.layout.run_dir.mkdir()
+    except FileExistsError:
+        raise ValueError(f"output {plan.layout.run_dir} already exists") from None
+    plan.layout.params_file.write_text(orchestrate.params_yaml(plan.params), encoding="utf-8")
+    plan.layout.commands_file.write_text(
+        "# The nodes of this run, one per terminal (written by `vega sil run`).\n"
+        + "\n".join(plan.lines) + "\n", encoding="utf-8")
+
+

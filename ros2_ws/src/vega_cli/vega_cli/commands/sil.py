@@ -1,0 +1,129 @@
+"""``vega sil run``: fly a scenario through the ROS 2 node graph, record a bag, check it.
+
+Arguments are validated before anything starts (an unknown scenario, a bad seed or table, an
+existing run directory, an executable that is not built → one line, exit status 2). Then the
+run directory ``OUT/<run-id>/`` gets the parameters file, every node is started as its own
+process (:class:`vega_bringup.orchestrate.Supervisor`) with the run's ROS_DOMAIN_ID, the start
+barrier is awaited, the flight supervised, and once every node has ended normally the report
+is written from the bag and the requirement table printed.
+
+Exit status: 0 every requirement and health check of the report passes; 1 one fails, or the
+run failed (a node died or failed, barrier timeout — the message names the node); 2 bad input
+(arguments, or a node rejected its input, e.g. a malformed controller table: the node's own
+one-line error is shown); 130 interrupted (Ctrl-C) — every node is stopped, the bag closed.
+
+``--dry-run`` writes the parameters file and prints the command of each node, one per line,
+ready to paste into separate terminals, without starting anything.
+"""
+
+import resource
+import sys
+import time
+
+from vega_bringup import rosenv
+from vega_bringup.planning import DEFAULT_OUT, DEFAULT_SCENARIO, plan_run, write_run_files
+
+__all__ = ["register"]
+
+_STATUS_EXIT = {"ok": 0, "failed": 1, "bad_input": 2, "interrupted": 130}
+
+
+def _say(line):
+    """A progress line on stderr (stdout carries the table and the dry-run commands)."""
+    print(f"vega sil: {line}", file=sys.stderr, flush=True)
+
+
+def _write_report(plan):
+    """Write the report (:func:`vega_bags.report.write_report`) from the bag; return
+    (passed, console table)."""
+    from vega_bags.report import write_report
+
+    result = write_report(plan.layout.bag_dir, plan.layout.report_dir)
+    return result.passed, result.table()
+
+
+def _run(args):
+    """``vega sil run``."""
+    from vega_bringup import orchestrate
+
+    plan = plan_run(scenario=args.scenario, seed=args.seed, out=args.out,
+                    realtime=args.realtime, table=args.table, run_id=args.run_id,
+                    domain_id=args.ros_domain_id)
+    write_run_files(plan)
+    if args.dry_run:
+        for line in plan.lines:
+            print(line)
+        _say(f"dry run: nothing started; parameters in {plan.layout.params_file}; paste each "
+             f"line into its own terminal (any order)")
+        return 0
+    span = plan.scenario.t_end_s - plan.scenario.t_start_s
+    _say(f"scenario '{plan.scenario.name}' seed {plan.seed}, {plan.scenario.t_start_s:g}-"
+         f"{plan.scenario.t_end_s:g} s, ROS_DOMAIN_ID={plan.domain_id}, run directory "
+         f"{plan.layout.run_dir}")
+    supervisor = orchestrate.Supervisor(
+        plan.nodes, plan.layout, rosenv.ros_environment(domain_id=plan.domain_id),
+        participants=plan.params.participants,
+        barrier_timeout_s=plan.params.barrier_timeout_s, progress=_say)
+    outcome = supervisor.run()
+    if not outcome.ok:
+        _say(f"error: {outcome.message}")
+        if plan.layout.bag_dir.exists():
+            _say(f"partial bag: {plan.layout.bag_dir}; node logs: {plan.layout.log_dir}")
+        else:
+            _say(f"node logs: {plan.layout.log_dir}")
+        return _STATUS_EXIT[outcome.status]
+    rtf = span / outcome.flight_wall_s if outcome.flight_wall_s else float("inf")
+    _say(f"flew {span:g} s in {outcome.flight_wall_s:.2f} s wall ({rtf:.1f}x real time); "
+         f"bag {plan.layout.bag_dir}")
+    cpu = outcome.cpu_s
+    if all(v is not None for v in cpu.values()):
+        own = resource.getrusage(resource.RUSAGE_SELF)
+        _say("node CPU time (start-up included): " + ", ".join(
+            f"{name} {seconds:.1f} s" for name, seconds in cpu.items())
+            + f"; sum {sum(cpu.values()):.1f} s; vega sil run itself "
+              f"{own.ru_utime + own.ru_stime:.1f} s")
+    t0 = time.monotonic()
+    passed, table = _write_report(plan)
+    print(table)
+    _say(f"report {plan.layout.report_dir} ({time.monotonic() - t0:.1f} s); verdict "
+         f"{'PASS' if passed else 'FAIL'} (exit status {0 if passed else 1})")
+    return 0 if passed else 1
+
+
+def _no_action(args):
+    raise ValueError("sil: an ACTION is required: run (see vega sil --help)")
+
+
+def register(subparsers):
+    """Add the ``sil`` sub-command (action ``run``)."""
+    parser = subparsers.add_parser(
+        "sil", help="software-in-the-loop runs: fly a scenario through the ROS 2 nodes",
+        description="Fly a scenario through the ROS 2 node graph (every node its own process), "
+                    "record a bag, write a report and check the requirements.")
+    parser.set_defaults(func=_no_action)
+    actions = parser.add_subparsers(dest="action", metavar="ACTION")
+    run = actions.add_parser(
+        "run", help="fly one scenario",
+        description="Validate the arguments, start every node as its own process, wait for "
+                    "the start barrier, fly, record OUT/<run-id>/bag, write the report to "
+                    "OUT/<run-id>/report and print the requirement table. Exit status: 0 "
+                    "every requirement and health check passes, 1 one fails or the run "
+                    "failed, 2 bad input, 130 interrupted.")
+    run.add_argument("--scenario", default=DEFAULT_SCENARIO, metavar="NAME|PATH",
+                     help=f"shipped scenario name or YAML file (default: {DEFAULT_SCENARIO})")
+    run.add_argument("--seed", default=None, metavar="N",
+                     help="seed (>= 0) overriding the scenario's")
+    run.add_argument("--out", default=DEFAULT_OUT, metavar="DIR",
+                     help=f"parent directory of the run directory (default: {DEFAULT_OUT})")
+    run.add_argument("--run-id", default=None, metavar="ID",
+                     help="name of the run directory (default: UTC time-scenario-seedN); an "
+                          "existing one is never overwritten")
+    run.add_argument("--table", default=None, metavar="FILE",
+                     help="controller table (.npz; default: the installed "
+                          "vega_gnc/config/lpv_controller.npz)")
+    run.add_argument("--realtime", action="store_true",
+                     help="pace the flight to the wall clock (default: as fast as possible)")
+    run.add_argument("--dry-run", action="store_true",
+                     help="write the parameters and print the command of each node, one per "
+                          "line, ready to paste into separate terminals; start nothing")
+    run.set_defaults(func=_run)

@@ -1,0 +1,238 @@
+"""TVC actuator: the second-order nozzle servo with position and rate limits.
+
+Two views of one actuator (thesis §2.12.3; the thesis' code uses
+G_TVC(s) = ω²/(s² + 2ζω s + ω²) with ω = 100 rad/s, ζ = 0.5):
+
+* :func:`linear_actuator_ss` — the unlimited continuous-time model with outputs
+  [β, β̇, β̈], for the synthesis and the linear analyses;
+* :class:`TvcActuator` — the nonlinear discrete-time actuator stepped at the physics rate
+  (1 kHz), with the position limit of thesis Table 3.1 (|β| ≤ 6.5°) and a rate limit
+  (an assumption, ``actuator.rate_limit_radps`` in vehicle.yaml; the thesis gives none).
+
+All numbers come from the ``actuator`` section of the vehicle data file.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from vega_model.vehicle_data import VehicleData
+
+__all__ = ["ActuatorParams", "linear_actuator_ss", "TvcActuator"]
+
+
+@dataclass(frozen=True)
+class ActuatorParams:
+    """Parameters of the TVC actuator (SI units).
+
+    Attributes
+    ----------
+    wn_radps
+        Natural frequency ω [rad/s].
+    zeta
+        Damping ratio ζ [-].
+    position_limit_rad
+        Mechanical stop |β| ≤ this [rad] (thesis Table 3.1: 6.5°).
+    rate_limit_radps
+        Slew-rate limit |β̇| ≤ this [rad/s] (assumption, see vehicle.yaml).
+    dt_s
+        Integration step of :class:`TvcActuator` = 1/physics rate [s].
+    """
+
+    wn_radps: float
+    zeta: float
+    position_limit_rad: float
+    rate_limit_radps: float
+    dt_s: float
+
+    def __post_init__(self):
+        for name in ("wn_radps", "position_limit_rad", "rate_limit_radps", "dt_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"ActuatorParams.{name} must be finite and > 0, got {value!r}")
+        if not (math.isfinite(self.zeta) and self.zeta >= 0.0):
+            raise ValueError(f"ActuatorParams.zeta must be finite and >= 0, got {self.zeta!r}")
+
+    @classmethod
+    def from_vehicle(cls, data: VehicleData, bandwidth_scale: float = 1.0) -> "ActuatorParams":
+        """Actuator parameters from the vehicle data file.
+
+        Parameters
+        ----------
+        data
+            Loaded vehicle data (section ``actuator``).
+        bandwidth_scale
+            Multiplies the natural frequency: ``1 + δ`` with δ the ``actuator`` deviation
+            of the uncertainty set (thesis §2.12.3: 10 % on the TVC dynamics). The
+            damping ratio and the limits are unchanged.
+        """
+        return cls(
+            wn_radps=data["actuator.natural_frequency_radps"] * float(bandwidth_scale),
+            zeta=data["actuator.damping_ratio"],
+            position_limit_rad=data["actuator.position_limit_rad"],
+            rate_limit_radps=data["actuator.rate_limit_radps"],
+            dt_s=1.0 / data["actuator.physics_rate_hz"],
+        )
+
+
+def linear_actuator_ss(params: ActuatorParams):
+    """Continuous-time unlimited actuator, input β_cmd, outputs [β, β̇, β̈].
+
+    Parameters
+    ----------
+    params
+        Actuator parameters (only ``wn_radps`` and ``zeta`` are used).
+
+    Returns
+    -------
+    A, B, C, D : numpy.ndarray
+        Shapes 2×2, 2×1, 3×2, 3×1; state [β, β̇].
+
+    Notes
+    -----
+    β̈ = ω²(β_cmd − β) − 2ζω β̇, i.e. β/β_cmd = ω²/(s² + 2ζω s + ω²) (thesis §2.12.3 and
+    its code, ω = 100 rad/s, ζ = 0.5). β̈ is an output with a direct feed-through, as the
+    plant model needs it as an input (tail-wags-dog, thesis §2.7).
+    """
+    w2 = params.wn_radps ** 2
+    c = 2.0 * params.zeta * params.wn_radps
+    A = np.array([[0.0, 1.0], [-w2, -c]])
+    B = np.array([[0.0], [w2]])
+    C = np.array([[1.0, 0.0], [0.0, 1.0], [-w2, -c]])
+    D = np.array([[0.0], [0.0], [w2]])
+    return A, B, C, D
+
+
+class TvcActuator:
+    """Nonlinear discrete-time TVC actuator stepped at ``params.dt_s``.
+
+    State (β, β̇) [rad, rad/s]; the command β_cmd is held over each step (zero-order hold).
+
+    Limiter law, one step from (β_k, β̇_k) with held command u (applied in this order):
+
+    1. Linear step, exact for the unlimited law β̈ = ω²(u − β) − 2ζωβ̇:
+       (β', β̇') = Φ (β_k, β̇_k) + Γ u with Φ = e^{A dt}, Γ = ∫₀^dt e^{Aτ} dτ B.
+    2. Rate limit R: if |β̇'| > R then β̇' ← sign(β̇')·R and the position follows the
+       limited rate, β' ← β_k + dt·(β̇_k + β̇')/2 (trapezoid). In every case the step is
+       then bounded, β' ← β_k + clip(β' − β_k, −R·dt, R·dt) (this acts only when the
+       linear path exceeds R inside the step, e.g. the step that leaves the limit).
+    3. Position limit P: if β' > P then β' ← P and β̇' ← min(β̇', 0) (likewise at −P with
+       max): the nozzle stops at the stop and only leaves it moving away from it.
+    4. β_{k+1} = β', β̇_{k+1} = β̇'; the reported acceleration is the law at the new state,
+       β̈_{k+1} = ω²(u − β_{k+1}) − 2ζωβ̇_{k+1}, set to 0 when a limit holds it: on the
+       rate limit (β̇ = ±R) with β̈ pushing beyond it, or on a stop (β = ±P) with β̈
+       pushing into it.
+
+    Unlimited, the samples equal the exact continuous response to the held command (to
+    rounding). At a limit the law is first-order accurate in dt at the switching step.
+
+    A non-finite command (NaN, ±inf) is treated as "hold the last finite command" (after
+    :meth:`reset`, the command that holds the reset position). The step never raises.
+    """
+
+    def __init__(self, params: ActuatorParams, beta0_rad: float = 0.0):
+        self.params = params
+        A, B, _, _ = linear_actuator_ss(params)
+        dt = params.dt_s
+        # exact ZOH: expm([[A, B], [0, 0]] dt) = [[Φ, Γ], [0, I]]; scipy imported here, not at
+        # module level: the plant, INS and recorder processes import this module but build no
+        # actuator, and scipy.linalg costs them ≈ 0.2 s of start-up each
+        from scipy.linalg import expm
+
+        aug = np.zeros((3, 3))
+        aug[:2, :2] = A
+        aug[:2, 2:] = B
+        e = expm(aug * dt)
+        self._p11, self._p12 = float(e[0, 0]), float(e[0, 1])
+        self._p21, self._p22 = float(e[1, 0]), float(e[1, 1])
+        self._g1, self._g2 = float(e[0, 2]), float(e[1, 2])
+        self._w2 = params.wn_radps ** 2
+        self._c = 2.0 * params.zeta * params.wn_radps
+        self._half_dt = 0.5 * dt
+        self._pos = params.position_limit_rad
+        self._rate = params.rate_limit_radps
+        self._max_step = params.rate_limit_radps * dt
+        self.reset(beta0_rad)
+
+    def reset(self, beta0_rad: float = 0.0) -> None:
+        """Put the nozzle at rest at ``beta0_rad`` (clamped to the stops), commanded there.
+
+        Raises
+        ------
+        ValueError
+            If ``beta0_rad`` is not finite.
+        """
+        if not math.isfinite(beta0_rad):
+            raise ValueError(f"beta0_rad must be finite, got {beta0_rad!r}")
+        b = min(max(float(beta0_rad), -self._pos), self._pos)
+        self.beta_rad = b
+        self.beta_dot_radps = 0.0
+        self.beta_ddot_radps2 = 0.0
+        self.command_rad = b
+
+    @property
+    def state(self) -> tuple[float, float, float]:
+        """Current (β [rad], β̇ [rad/s], β̈ [rad/s²])."""
+        return self.beta_rad, self.beta_dot_radps, self.beta_ddot_radps2
+
+    def step(self, beta_cmd_rad: float) -> tuple[float, float, float]:
+        """Advance one step ``dt_s`` with the command held; return (β, β̇, β̈) at its end."""
+        u = float(beta_cmd_rad)
+        if math.isfinite(u):
+            self.command_rad = u
+        else:
+            u = self.command_rad
+        b0, r0 = self.beta_rad, self.beta_dot_radps
+        b = self._p11 * b0 + self._p12 * r0 + self._g1 * u
+        r = self._p21 * b0 + self._p22 * r0 + self._g2 * u
+        rate, pos = self._rate, self._pos
+        if r > rate:
+            r = rate
+            b = b0 + self._half_dt * (r0 + r)
+        elif r < -rate:
+            r = -rate
+            b = b0 + self._half_dt * (r0 + r)
+        max_step = self._max_step
+        if b - b0 > max_step:
+            b = b0 + max_step
+        elif b - b0 < -max_step:
+            b = b0 - max_step
+        if b > pos:
+            b = pos
+            r = min(r, 0.0)
+        elif b < -pos:
+            b = -pos
+            r = max(r, 0.0)
+        a = self._w2 * (u - b) - self._c * r
+        if (a > 0.0 and (r >= rate or b >= pos)) or (a < 0.0 and (r <= -rate or b <= -pos)):
+            a = 0.0
+        self.beta_rad, self.beta_dot_radps, self.beta_ddot_radps2 = b, r, a
+        return b, r, a
+
+    def advance(self, beta_cmd_rad, n_steps: int):
+        """Advance ``n_steps`` steps; return arrays (β, β̇, β̈), one entry per step end.
+
+        Parameters
+        ----------
+        beta_cmd_rad
+            A command held for all steps, or a sequence of ``n_steps`` commands (one per
+            step, e.g. a delayed command that changes inside a frame).
+        n_steps
+            Number of steps of ``dt_s``.
+        """
+        n = int(n_steps)
+        if n < 0:
+            raise ValueError(f"n_steps must be >= 0, got {n_steps!r}")
+        if np.ndim(beta_cmd_rad) == 0:
+            commands = [float(beta_cmd_rad)] * n
+        else:
+            commands = [float(c) for c in np.ravel(beta_cmd_rad)]
+            if len(commands) != n:
+                raise ValueError(f"{len(commands)} commands given for {n} steps")
+        out = np.empty((3, n))
+        for k, u in enumerate(commands):
+            out[:, k] = self.step(u)
+        return out[0], out[1], out[2]

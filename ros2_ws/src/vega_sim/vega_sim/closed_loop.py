@@ -1,0 +1,241 @@
+"""The in-process closed-loop simulation: the SIL's node step functions, called in lockstep.
+
+:func:`run_scenario` flies a :class:`~vega_sim.scenario.Scenario` with a controller table
+through the same classes the SIL nodes wrap (:mod:`vega_sim.plant_step`,
+:mod:`vega_sim.device_steps`, :mod:`vega_gnc.controller_step`), one frame (10 ms) at a time, in the order the lockstep SIL runs
+them::
+
+    truth(t_f) ──► INS.sample ──► controller.step (every 2nd sample) ──► actuator.receive
+         ▲                                                                    │
+         └──────────── plant.advance(samples) ◄── actuator.advance(t_f) ◄─────┘
+
+All times are integer milliseconds (:mod:`vega_bus.timing`); the latencies are carried
+by the stamps (INS +12 ms, controller +12 ms, actuator +15 ms), not by the call order, so the
+result does not depend on when within a frame a node is called. Same scenario and seed →
+identical arrays. The SIL must reproduce this run (same scenario, seed and table).
+
+The run covers the frames [t_start, t_end): the INS samples at their starts, the plant's truth
+is recorded at every frame time up to and including t_end, the actuator at every physics step.
+
+A SIL node builds its part with the factory the in-process run uses
+(:mod:`vega_sim.assembly`: ``make_plant``, ``make_ins`` — its model parameters at a sample
+time are :func:`vega_sim.plant_step.parameters_at` —, ``make_actuator``; the controller:
+:class:`vega_gnc.controller_step.ControllerStep` from the table and the loop timing) and
+converts stamps with :mod:`vega_bus.timing`; tests/test_closed_loop.py checks that
+nodes built and driven that way reproduce :func:`run_scenario` bit for bit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import numpy as np
+
+from vega_bus.timing import LoopTiming
+from vega_gnc.controller_runtime import RuntimeLimits
+from vega_gnc.controller_table import ControllerTable, load_controller_table
+from vega_gnc.controller_step import ControllerStep
+from vega_model.parameters import ModelContext, default_context
+from vega_sim.scenario import Scenario, load_scenario
+from vega_sim.device_steps import ActuatorStep, InsStep
+from vega_sim.plant_step import PlantStep
+from vega_sim.assembly import loop_timing, make_actuator, make_ins, make_plant
+
+from vega_sim.requirements import RequirementReport, RequirementSpec, evaluate_requirements
+
+__all__ = ["make_controller", "LoopSteps", "build_nodes", "SimulationResult", "run_scenario"]
+
+
+def make_controller(scenario: Scenario, table: ControllerTable, *,
+                    context: ModelContext | None = None,
+                    limits: RuntimeLimits = RuntimeLimits()) -> ControllerStep:
+    """The controller node of a scenario with a controller table."""
+    return ControllerStep(table, loop_timing(scenario, context), limits)
+
+
+@dataclass(frozen=True)
+class LoopSteps:
+    """The nodes of one run, built from a scenario as the SIL nodes build theirs."""
+
+    timing: LoopTiming
+    plant: PlantStep
+    ins: InsStep
+    controller: ControllerStep
+    actuator: ActuatorStep
+
+
+def build_nodes(scenario: Scenario, table: ControllerTable, *, seed: int | None = None,
+                context: ModelContext | None = None, parameter_refresh_ms: int | None = None,
+                limits: RuntimeLimits = RuntimeLimits()) -> LoopSteps:
+    """All four nodes of a scenario, ready at t_start (:func:`make_plant`, :func:`make_ins`,
+    :func:`make_controller`, :func:`make_actuator` with the same arguments)."""
+    context = context if context is not None else default_context()
+    return LoopSteps(
+        timing=loop_timing(scenario, context),
+        plant=make_plant(scenario, seed=seed, context=context,
+                         parameter_refresh_ms=parameter_refresh_ms),
+        ins=make_ins(scenario, seed=seed, context=context),
+        controller=make_controller(scenario, table, context=context, limits=limits),
+        actuator=make_actuator(scenario, context=context))
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """Time histories of one closed-loop run (SI units; times as integer ms and seconds).
+
+    Truth, at every frame time t_start … t_end (``t_ms``): ``theta_rad``, ``theta_dot_radps``,
+    ``z_m``, ``z_dot_mps``, ``alpha_rad``, ``q_alpha_pa_rad``, ``q_pa``, ``mach``, ``v_mps``,
+    ``h_m``, ``wind_mps``, ``bending_q`` and ``bending_qdot`` (N×2).
+    Actuator, at every physics step t_start … t_end (``act_t_ms``; index 0 = initial state):
+    ``beta_rad``, ``beta_dot_radps``, ``beta_ddot_radps2`` and ``beta_cmd_rad`` (the command
+    held over the step ending at the sample).
+    INS, one per frame (sample ``ins_sample_ms``, stamp ``ins_stamp_ms``): ``ins_theta_rad``,
+    ``ins_theta_dot_radps``, ``ins_z_m``, ``ins_z_dot_mps``, ``ins_v_mps``.
+    Controller, one per command (``cmd_stamp_ms``, from the sample ``cmd_sample_ms``):
+    ``cmd_rad``, ``cmd_v_mps`` (scheduling velocity), ``cmd_status`` (TvcCommand STATUS_*).
+    """
+
+    scenario: Scenario
+    seed: int
+    t_ms: np.ndarray
+    theta_rad: np.ndarray
+    theta_dot_radps: np.ndarray
+    z_m: np.ndarray
+    z_dot_mps: np.ndarray
+    alpha_rad: np.ndarray
+    q_alpha_pa_rad: np.ndarray
+    q_pa: np.ndarray
+    mach: np.ndarray
+    v_mps: np.ndarray
+    h_m: np.ndarray
+    wind_mps: np.ndarray
+    bending_q: np.ndarray
+    bending_qdot: np.ndarray
+    act_t_ms: np.ndarray
+    beta_rad: np.ndarray
+    beta_dot_radps: np.ndarray
+    beta_ddot_radps2: np.ndarray
+    beta_cmd_rad: np.ndarray
+    ins_sample_ms: np.ndarray
+    ins_stamp_ms: np.ndarray
+    ins_theta_rad: np.ndarray
+    ins_theta_dot_radps: np.ndarray
+    ins_z_m: np.ndarray
+    ins_z_dot_mps: np.ndarray
+    ins_v_mps: np.ndarray
+    cmd_sample_ms: np.ndarray
+    cmd_stamp_ms: np.ndarray
+    cmd_rad: np.ndarray
+    cmd_v_mps: np.ndarray
+    cmd_status: np.ndarray
+
+    @property
+    def t_s(self) -> np.ndarray:
+        """Truth times [s]."""
+        return self.t_ms / 1000.0
+
+    @property
+    def act_t_s(self) -> np.ndarray:
+        """Actuator sample times [s]."""
+        return self.act_t_ms / 1000.0
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Every time history by field name (for comparisons and saving)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)
+                if isinstance(getattr(self, f.name), np.ndarray)}
+
+    def metrics(self, spec: RequirementSpec | None = None) -> RequirementReport:
+        """Requirement metrics, margins and pass/fail (thesis Table 3.1), with the thesis'
+        Table 5.1 figures side by side (:func:`vega_sim.requirements.evaluate_requirements`)."""
+        return evaluate_requirements(self.t_s, self.q_alpha_pa_rad, self.mach, self.z_m,
+                                     self.z_dot_mps, self.act_t_s, self.beta_rad,
+                                     beta_cmd_rad=self.beta_cmd_rad, spec=spec)
+
+
+def _columns(values: list, n_fields: int) -> np.ndarray:
+    """Records of ``n_fields`` numbers, concatenated, as a (n_fields, n_records) float array
+    with contiguous rows."""
+    return np.array(values, dtype=float).reshape(-1, n_fields).T.copy()
+
+
+def run_scenario(scenario: Scenario | str | Path, table: ControllerTable | str | Path,
+                 seed: int | None = None, *, context: ModelContext | None = None,
+                 parameter_refresh_ms: int | None = None,
+                 limits: RuntimeLimits = RuntimeLimits()) -> SimulationResult:
+    """Fly a scenario in process and return its time histories.
+
+    Parameters
+    ----------
+    scenario
+        A :class:`Scenario`, or a shipped scenario name / YAML path (:func:`load_scenario`).
+    table
+        A :class:`ControllerTable` or the path of a controller table file.
+    seed
+        Overrides the scenario's seed.
+    context, parameter_refresh_ms, limits
+        See :func:`build_nodes`.
+
+    Raises
+    ------
+    ValueError
+        Bad scenario or table (one line), a span outside the flight-condition table, or a
+        table whose sample time is not the controller period.
+    """
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    if not isinstance(table, ControllerTable):
+        table = load_controller_table(table)
+    nodes = build_nodes(scenario, table, seed=seed, context=context,
+                        parameter_refresh_ms=parameter_refresh_ms, limits=limits)
+    plant, ins, controller, actuator = nodes.plant, nodes.ins, nodes.controller, nodes.actuator
+    at_ms = plant.track.at_ms
+    # flat lists of numbers (the per-step objects die at once: no garbage-collector load)
+    truths, bending, measurements, commands = [], [], [], []
+    beta, rate, accel, held = [], [], [], []
+    truth = plant.output()
+    for _ in range(plant.track.n_frames):
+        truths += truth[:13]
+        bending += truth.bending_q + truth.bending_qdot
+        t = truth.stamp_ms
+        meas = ins.sample(truth, at_ms(t))
+        measurements += meas
+        cmd = controller.step(meas)
+        if cmd is not None:
+            actuator.receive(cmd)
+            commands += cmd
+        frame = actuator.advance(t)
+        beta += frame.deflection_samples_rad
+        rate += frame.rate_samples_radps
+        accel += frame.accel_samples_radps2
+        held += frame.command_samples_rad
+        truth = plant.advance(frame.deflection_samples_rad, frame.rate_samples_radps)
+    truths += truth[:13]
+    bending += truth.bending_q + truth.bending_qdot
+
+    (t_ms, _seq, theta, theta_dot, z, z_dot, alpha, q_alpha, q_pa, mach, v,
+     h, wind) = _columns(truths, 13)
+    bending = _columns(bending, 4).T
+    (ins_stamp, ins_sample, _iseq, i_theta, i_theta_dot, i_z, i_z_dot, i_v,
+     _valid) = _columns(measurements, 9)
+    c_stamp, c_sample, _cseq, c_rad, c_v, c_status = _columns(commands, 6)
+    dt = nodes.timing.physics_dt_ms
+    beta0 = scenario.initial_state.beta_rad
+
+    def stacked(samples, first):
+        return np.array([first] + samples, dtype=float)
+
+    return SimulationResult(
+        scenario=scenario, seed=scenario.seed if seed is None else int(seed),
+        t_ms=t_ms.astype(np.int64), theta_rad=theta, theta_dot_radps=theta_dot, z_m=z,
+        z_dot_mps=z_dot, alpha_rad=alpha, q_alpha_pa_rad=q_alpha, q_pa=q_pa, mach=mach,
+        v_mps=v, h_m=h, wind_mps=wind, bending_q=bending[:, :2].copy(),
+        bending_qdot=bending[:, 2:].copy(),
+        act_t_ms=scenario.t_start_ms + dt * np.arange(len(beta) + 1, dtype=np.int64),
+        beta_rad=stacked(beta, beta0), beta_dot_radps=stacked(rate, 0.0),
+        beta_ddot_radps2=stacked(accel, 0.0), beta_cmd_rad=stacked(held, beta0),
+        ins_sample_ms=ins_sample.astype(np.int64), ins_stamp_ms=ins_stamp.astype(np.int64),
+        ins_theta_rad=i_theta, ins_theta_dot_radps=i_theta_dot, ins_z_m=i_z,
+        ins_z_dot_mps=i_z_dot, ins_v_mps=i_v,
+        cmd_sample_ms=c_sample.astype(np.int64), cmd_stamp_ms=c_stamp.astype(np.int64),
+        cmd_rad=c_rad.copy(), cmd_v_mps=c_v.copy(), cmd_status=c_status.astype(np.int64))

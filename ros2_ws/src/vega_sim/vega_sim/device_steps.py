@@ -1,0 +1,175 @@
+"""The INS and actuator of the closed loop as step functions (one class per node).
+
+Plain Python, no ROS: the in-process simulation (:mod:`vega_sim.closed_loop`) and the SIL
+nodes (:mod:`vega_plant.nodes`) call these same classes, so both produce the same numbers.
+Each class takes and returns plain values whose fields are those of the ``vega_msgs`` message
+it will publish, with stamps as integer milliseconds (:mod:`vega_bus.timing` converts to ROS
+stamps). The controller's step class, on the flight side, is
+:class:`vega_gnc.controller_step.ControllerStep`:
+
+* :class:`InsStep` — samples the truth every frame (100 Hz) with
+  :class:`vega_model.ins.InsSensor` (seeded noise); the measurement is stamped sample +
+  sensor latency (12 ms). → :class:`vega_bus.records.InsOut` (``InsMeasurement``)
+* ControllerStep (:mod:`vega_gnc.controller_step`) — every measurement whose sample time is a multiple of the
+  controller period (20 ms) goes through :class:`vega_gnc.controller_runtime.ControllerRuntime`
+  exactly as flown, at its arrival; the command is stamped arrival + computing latency (12 ms).
+  → :class:`CommandOut` (``TvcCommand``)
+* :class:`ActuatorStep` — applies each command at its stamp + actuator latency (15 ms), holds
+  it until the next one, and integrates :class:`vega_model.actuator.TvcActuator` (limits
+  included) at the physics rate one frame at a time. → :class:`ActuatorOut` (``ActuatorState``)
+"""
+
+from __future__ import annotations
+
+import bisect
+from typing import NamedTuple
+
+from vega_bus.records import InsOut
+from vega_bus.timing import LoopTiming, check_ms
+
+from vega_model.actuator import ActuatorParams, TvcActuator
+from vega_model.ins import InsParams, InsSensor
+from vega_model.parameters import ModelParameters
+from vega_sim.plant_step import TruthOut
+
+__all__ = ["ActuatorOut", "InsStep", "ActuatorStep"]
+
+
+class ActuatorOut(NamedTuple):
+    """The nozzle over one frame: the fields of ``vega_msgs/ActuatorState``.
+
+    Samples at the ends of the frame's physics steps, oldest first; ``stamp_ms`` is the time
+    of the last one. ``command_samples_rad`` (the command held over each step) is not carried
+    by the message; a bag check rebuilds it from the ``TvcCommand`` stamps and the actuator
+    latency.
+    """
+
+    stamp_ms: int
+    seq: int
+    deflection_samples_rad: tuple[float, ...]
+    rate_samples_radps: tuple[float, ...]
+    accel_samples_radps2: tuple[float, ...]
+    command_samples_rad: tuple[float, ...]
+    sample_period_s: float
+
+    @property
+    def deflection_rad(self) -> float:
+        """Nozzle angle at the stamp [rad]."""
+        return self.deflection_samples_rad[-1]
+
+    @property
+    def rate_radps(self) -> float:
+        """Nozzle rate at the stamp [rad/s]."""
+        return self.rate_samples_radps[-1]
+
+    @property
+    def accel_radps2(self) -> float:
+        """Nozzle acceleration at the stamp [rad/s²]."""
+        return self.accel_samples_radps2[-1]
+
+
+class InsStep:
+    """INS sensor node: one measurement per frame.
+
+    Parameters
+    ----------
+    params
+        INS parameters (noise levels; rate and latency must match ``timing``).
+    timing
+        Loop timing (frame = INS period, sensor latency).
+    seed
+        Noise seed (:class:`vega_model.ins.InsSensor`).
+    noise
+        False: exact kinematics.
+    """
+
+    def __init__(self, params: InsParams, timing: LoopTiming, seed: int, noise: bool = True):
+        check_ms(1.0 / params.rate_hz, timing.frame_ms, "INS period")
+        check_ms(params.latency_s, timing.sensor_latency_ms, "INS latency")
+        self._sensor = InsSensor(params, seed=seed, noise=noise)
+        self._latency_ms = timing.sensor_latency_ms
+        self._seq = 0
+
+    def sample(self, truth: TruthOut, model_params: ModelParameters) -> InsOut:
+        """Measure the truth of one frame.
+
+        Parameters
+        ----------
+        truth
+            The plant's truth at the sample time.
+        model_params
+            Model parameters at the sample time (INS lever arm and mode shapes).
+        """
+        s = self._sensor.measure(truth.state, model_params, truth.velocity_mps)
+        out = InsOut(truth.stamp_ms + self._latency_ms, truth.stamp_ms, self._seq,
+                     s.theta_rad, s.theta_dot_radps, s.z_m, s.z_dot_mps, s.velocity_mps, True)
+        self._seq += 1
+        return out
+
+
+class ActuatorStep:
+    """TVC actuator node: delayed, held commands and the limited servo at the physics rate.
+
+    Parameters
+    ----------
+    params
+        Actuator parameters (``dt_s`` must be the physics step).
+    timing
+        Loop timing (physics step, frame, actuator latency).
+    t_start_ms
+        Time of the first frame.
+    beta0_rad
+        Initial nozzle angle, at rest and commanded there until the first command applies.
+    """
+
+    def __init__(self, params: ActuatorParams, timing: LoopTiming, t_start_ms: int,
+                 beta0_rad: float = 0.0):
+        check_ms(params.dt_s, timing.physics_dt_ms, "actuator step")
+        self._act = TvcActuator(params, beta0_rad)
+        self._dt_ms = timing.physics_dt_ms
+        self._steps = timing.steps_per_frame
+        self._latency_ms = timing.actuator_latency_ms
+        self._t_ms = int(t_start_ms)
+        self._pending: list[tuple[int, int, float]] = []
+        self._command = self._act.command_rad
+        self._seq = 0
+
+    @property
+    def t_ms(self) -> int:
+        """Start of the next frame [ms]."""
+        return self._t_ms
+
+    def receive(self, cmd) -> None:
+        """Queue a command; it applies from ``cmd.stamp_ms`` + actuator latency.
+
+        ``cmd``: a :class:`vega_gnc.controller_step.CommandOut` or anything with its
+        ``stamp_ms``, ``seq`` and ``deflection_cmd_rad`` fields.
+        """
+        bisect.insort(self._pending, (cmd.stamp_ms + self._latency_ms, cmd.seq,
+                                      cmd.deflection_cmd_rad))
+
+    def advance(self, t_ms: int) -> ActuatorOut:
+        """Integrate the frame [t_ms, t_ms + frame) and return its samples.
+
+        Raises
+        ------
+        ValueError
+            If ``t_ms`` is not the start of the next frame (lockstep violated).
+        """
+        if t_ms != self._t_ms:
+            raise ValueError(f"actuator frame at {t_ms} ms, expected {self._t_ms} ms")
+        pending, act, dt = self._pending, self._act, self._dt_ms
+        step = act.step
+        command = self._command
+        samples = []
+        for k in range(self._steps):
+            while pending and pending[0][0] <= t_ms + k * dt:
+                command = pending.pop(0)[2]
+            # (β, β̇, β̈) and the finite command in force (a NaN/inf command holds the last)
+            samples.append(step(command) + (act.command_rad,))
+        self._command = command
+        beta, rate, accel, held = zip(*samples)
+        self._t_ms = t_ms + self._steps * dt
+        out = ActuatorOut(self._t_ms, self._seq, beta, rate, accel, held, dt / 1000.0)
+        self._seq += 1
+        return out

@@ -1,0 +1,492 @@
+"""The truth side of the closed loop as step functions: parameters, wind and plant.
+
+Plain Python, no ROS: the in-process simulation (:mod:`vega_sim.closed_loop`) and the SIL
+plant node run this same code. Nothing here re-derives the physics: the equations are
+:mod:`vega_model.dynamics`, the parameters :mod:`vega_model.parameters`, the wind
+:mod:`vega_model.wind`.
+
+* :class:`ParameterTrack` — model parameters along the flight, evaluated once per refresh
+  interval (default: once per 10 ms frame, at its start — they vary slowly; the effect of
+  refreshing every 1 ms is measured in tests/test_closed_loop.py) and, for the linear plant,
+  the exact zero-order-hold discretisation of :func:`vega_model.dynamics.linear_model`.
+* :class:`PlantWind` — the wind along +z at the physics rate: :class:`vega_model.wind.WindModel`
+  plus, optionally, the thesis' constant-driven Dryden filter (:func:`thesis_dryden_coefficients`).
+* :class:`PlantStep` — the plant, linear or nonlinear, integrated one frame at a time from the
+  actuator's physics-rate samples; publishes :class:`TruthOut` (the fields of
+  ``vega_msgs/VehicleState``) at every frame time.
+
+Inputs over one physics step [t_k, t_k+1] are held at their step means, from the actuator
+samples at both ends: β̄ = (β_k + β_k+1)/2 (trapezoid), the rate likewise, and
+β̈̄ = (β̇_k+1 − β̇_k)/dt, the exact mean of β̈ since β̇ is continuous (a command step makes β̈
+jump inside the step). The wind is held at its value at the step start. The linear plant
+propagates these held inputs exactly (ZOH); the nonlinear plant integrates them with RK4.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from typing import Mapping, NamedTuple, Sequence
+
+import numpy as np
+
+from vega_model.dynamics import (STATES, NonlinearModel, angle_of_attack, linear_model,
+                                 nonlinear_outputs)
+from vega_model.parameters import ModelContext, ModelParameters
+from vega_model.vehicle_data import VehicleData
+from vega_model.wind import GustProfile, WindModel, turbulence_params
+
+__all__ = [
+    "PLANT_MODELS", "THESIS_DRYDEN_WEIGHT", "TruthOut", "LinearFrames", "parameters_at",
+    "ParameterTrack", "parameter_track", "thesis_dryden_coefficients", "PlantWind", "PlantStep",
+]
+
+PLANT_MODELS = ("linear", "nonlinear")
+
+# W_w: the thesis drove its Dryden filter with a constant 1 through this weight (thesis §4.5.1,
+# "three standard deviations"; the same number as offline_synthesis.weights.THESIS.wind_sigmas).
+THESIS_DRYDEN_WEIGHT = 3.0
+
+_N = len(STATES)
+# Chunk of augmented matrices handed to one batched expm call (bounds the temporary memory).
+_EXPM_CHUNK = 4096
+
+
+class TruthOut(NamedTuple):
+    """Truth at one frame time: the fields of ``vega_msgs/VehicleState`` (SI units).
+
+    ``dynamic_pressure_pa``, ``mach``, ``velocity_mps`` and ``altitude_m`` are those of the
+    reference trajectory at the stamp (the model parameters); ``aoa_rad`` is the kinematic
+    angle of attack at the CP (:func:`vega_model.dynamics.angle_of_attack`) and
+    ``q_alpha_pa_rad`` the plant's own Qα output; ``wind_mps`` the wind held over the
+    physics step that starts at the stamp.
+    """
+
+    stamp_ms: int
+    seq: int
+    pitch_rad: float
+    pitch_rate_radps: float
+    drift_m: float
+    drift_rate_mps: float
+    aoa_rad: float
+    q_alpha_pa_rad: float
+    dynamic_pressure_pa: float
+    mach: float
+    velocity_mps: float
+    altitude_m: float
+    wind_mps: float
+    bending_q: tuple[float, float]
+    bending_qdot: tuple[float, float]
+
+    @property
+    def state(self) -> tuple[float, ...]:
+        """The plant state in :data:`vega_model.dynamics.STATES` order."""
+        return (self.pitch_rad, self.pitch_rate_radps, self.drift_m, self.drift_rate_mps,
+                *self.bending_q, *self.bending_qdot)
+
+
+class LinearFrames(NamedTuple):
+    """The linear plant over whole frames: x(t_f+1) = H[f] [x(t_f); U_f].
+
+    ``H[f] = [F | G]`` with F the frame's state transition and G the input matrix of
+    ``U_f``, which stacks the held inputs ``[β̄, β̈̄, v_w]`` of the frame's physics steps,
+    oldest first. ``q_alpha_x[e]`` and ``q_alpha_wind[e]`` are the Qα row of C and the wind
+    entry of D at parameter entry ``e``.
+    """
+
+    H: np.ndarray
+    q_alpha_x: np.ndarray
+    q_alpha_wind: np.ndarray
+
+
+def _expm_batched(m: np.ndarray) -> np.ndarray:
+    """Matrix exponentials of a stack of small matrices (…, n, n).
+
+    Scaling and squaring with a degree-10 Taylor polynomial (Horner form): with
+    ‖M/2^s‖₁ ≤ 1/4 the truncation error is below 0.25^11/11! ≈ 6e-15. Batched numpy products
+    only (tests/test_closed_loop.py compares it with ``scipy.linalg.expm``): scipy's expm works
+    matrix by matrix, which is ~10× slower for thousands of 11×11 matrices.
+    """
+    norm = float(np.abs(m).sum(axis=-2).max()) if m.size else 0.0
+    s = max(0, math.ceil(math.log2(norm / 0.25))) if norm > 0.0 else 0
+    x = m / 2.0 ** s
+    eye = np.eye(m.shape[-1])
+    e = eye + x / 10.0
+    for k in range(9, 0, -1):
+        e = eye + (x @ e) / k
+    for _ in range(s):
+        e = e @ e
+    return e
+
+
+def parameters_at(context: ModelContext, t_ms: int,
+                  deviations: Mapping[str, float] | None = None) -> ModelParameters:
+    """The truth model parameters at ``t_ms`` (perturbed by ``deviations`` if any is non-zero).
+
+    The one evaluation every truth-side node uses (plant, wind, INS), so that they agree bit
+    for bit: ``context.parameters(t_ms / 1000)``, then :meth:`ModelParameters.perturbed`.
+    """
+    p = context.parameters(t_ms / 1000.0)
+    if deviations and any(deviations.values()):
+        p = p.perturbed(deviations)
+    return p
+
+
+class ParameterTrack:
+    """Model parameters along [t_start, t_end + one frame), one set per refresh interval.
+
+    Parameters
+    ----------
+    context
+        The model's data sources (:class:`vega_model.parameters.ModelContext`).
+    t_start_ms, t_end_ms
+        Simulated span [ms], multiples of ``frame_ms``. The track runs one frame past the
+        end so that the truth at ``t_end`` has its wind and parameters.
+    frame_ms, refresh_ms, dt_ms
+        Frame, parameter refresh interval (a divisor of the frame; default: the frame) and
+        physics step (a divisor of the refresh interval) [ms].
+    deviations
+        Uncertainty deviations by name (:meth:`ModelParameters.perturbed`; names of other
+        models are ignored there). Empty: the nominal model.
+
+    Notes
+    -----
+    Entry ``e`` holds :func:`parameters_at` (t_e) with t_e = t_start + e·refresh: the
+    parameters are held constant over each refresh interval (a zero-order hold of slowly
+    varying data; the sensitivity to the interval is measured in tests/test_closed_loop.py).
+    Objects are read-only once built and may be shared.
+    """
+
+    def __init__(self, context: ModelContext, t_start_ms: int, t_end_ms: int, *,
+                 frame_ms: int = 10, refresh_ms: int = 10, dt_ms: int = 1,
+                 deviations: Mapping[str, float] | None = None):
+        if frame_ms % refresh_ms or refresh_ms % dt_ms:
+            raise ValueError(f"parameter refresh {refresh_ms} ms must divide the frame "
+                             f"({frame_ms} ms) and be a multiple of the step ({dt_ms} ms)")
+        if t_start_ms % frame_ms or t_end_ms % frame_ms or t_end_ms <= t_start_ms:
+            raise ValueError(f"span [{t_start_ms}, {t_end_ms}] ms must be whole frames of "
+                             f"{frame_ms} ms with t_end > t_start")
+        lo, hi = context.time_range_s
+        if t_start_ms < 1000.0 * lo or t_end_ms + frame_ms > 1000.0 * hi:
+            raise ValueError(f"span [{t_start_ms / 1000}, {t_end_ms / 1000}] s is outside the "
+                             f"flight-condition table [{lo}, {hi - frame_ms / 1000}] s")
+        self.context = context
+        self.t_start_ms, self.t_end_ms = int(t_start_ms), int(t_end_ms)
+        self.frame_ms, self.refresh_ms, self.dt_ms = int(frame_ms), int(refresh_ms), int(dt_ms)
+        self.deviations = dict(deviations or {})
+        n = (t_end_ms - t_start_ms + frame_ms) // refresh_ms
+        self.params: tuple[ModelParameters, ...] = tuple(
+            parameters_at(context, t_start_ms + refresh_ms * e, self.deviations)
+            for e in range(n))
+        self._linear: LinearFrames | None = None
+        self._nonlinear: list[NonlinearModel | None] = [None] * n
+
+    @property
+    def n_frames(self) -> int:
+        """Frames in [t_start, t_end)."""
+        return (self.t_end_ms - self.t_start_ms) // self.frame_ms
+
+    def entry(self, t_ms: int) -> int:
+        """Index of the parameter entry in force at ``t_ms``."""
+        return (t_ms - self.t_start_ms) // self.refresh_ms
+
+    def at_ms(self, t_ms: int) -> ModelParameters:
+        """Parameters in force at ``t_ms``."""
+        return self.params[(t_ms - self.t_start_ms) // self.refresh_ms]
+
+    def nonlinear_model(self, e: int) -> NonlinearModel:
+        """The nonlinear model of parameter entry ``e`` (built on first use, then shared)."""
+        model = self._nonlinear[e]
+        if model is None:
+            model = self._nonlinear[e] = NonlinearModel(self.params[e])
+        return model
+
+    def linear_frames(self) -> LinearFrames:
+        """The linear plant's frame maps (computed once, then shared).
+
+        Each physics step is the exact ZOH discretisation of linear_model(p) for the entry in
+        force, [[Φ, Γ], [0, I]] = exp([[A, B], [0, 0]]·dt) (the input columns are scaled to
+        unit norm before the exponential and back after, which leaves Γ exact and keeps the
+        norm small), and the steps of a frame are composed into F = Φ_{K−1}…Φ_0 and
+        G = [Φ_{K−1}…Φ_1 Γ_0, …, Γ_{K−1}].
+        """
+        if self._linear is None:
+            self._linear = self._build_linear()
+        return self._linear
+
+    def _build_linear(self) -> LinearFrames:
+        n_e = len(self.params)
+        models = [linear_model(p) for p in self.params]
+        dt = self.dt_ms / 1000.0
+        aug = np.zeros((n_e, _N + 3, _N + 3))
+        aug[:, :_N, :_N] = np.array([m[0] for m in models]) * dt
+        aug[:, :_N, _N:] = np.array([m[1] for m in models]) * dt
+        q_alpha_x = np.array([m[2][0] for m in models])
+        q_alpha_wind = np.array([m[3][0, 2] for m in models])
+        col = np.maximum(np.abs(aug[:, :_N, _N:]).sum(axis=1), 1.0)    # (n_e, 3)
+        aug[:, :_N, _N:] /= col[:, None, :]
+        phi = np.empty((n_e, _N, _N))
+        gam = np.empty((n_e, _N, 3))
+        for s in range(0, n_e, _EXPM_CHUNK):
+            block = _expm_batched(aug[s:s + _EXPM_CHUNK])
+            phi[s:s + _EXPM_CHUNK] = block[:, :_N, :_N]
+            gam[s:s + _EXPM_CHUNK] = block[:, :_N, _N:] * col[s:s + _EXPM_CHUNK, None, :]
+        steps = self.frame_ms // self.dt_ms
+        frame_entries = np.arange(self.n_frames) * (self.frame_ms // self.refresh_ms)
+        H = np.empty((self.n_frames, _N, _N + 3 * steps))
+        prod = np.broadcast_to(np.eye(_N), (self.n_frames, _N, _N)).copy()
+        for k in range(steps - 1, -1, -1):
+            e = frame_entries + (k * self.dt_ms) // self.refresh_ms
+            H[:, :, _N + 3 * k:_N + 3 * k + 3] = prod @ gam[e]
+            prod = prod @ phi[e]
+        H[:, :, :_N] = prod
+        for arr in (H, q_alpha_x, q_alpha_wind):
+            arr.setflags(write=False)
+        return LinearFrames(H, q_alpha_x, q_alpha_wind)
+
+
+@lru_cache(maxsize=4)
+def _cached_track(context, t_start_ms, t_end_ms, frame_ms, refresh_ms, dt_ms, deviations):
+    return ParameterTrack(context, t_start_ms, t_end_ms, frame_ms=frame_ms,
+                          refresh_ms=refresh_ms, dt_ms=dt_ms, deviations=dict(deviations))
+
+
+def parameter_track(context: ModelContext, t_start_ms: int, t_end_ms: int, *,
+                    frame_ms: int = 10, refresh_ms: int = 10, dt_ms: int = 1,
+                    deviations: Mapping[str, float] | None = None) -> ParameterTrack:
+    """A :class:`ParameterTrack`, memoised per (context, span, intervals, deviations).
+
+    The track is a deterministic function of its arguments and read-only, so repeated runs of
+    one span (seeds, scenarios, Monte Carlo with the same deviations) share one precomputation.
+    """
+    key = tuple(sorted((str(k), float(v)) for k, v in (deviations or {}).items()))
+    return _cached_track(context, int(t_start_ms), int(t_end_ms), int(frame_ms),
+                         int(refresh_ms), int(dt_ms), key)
+
+
+def thesis_dryden_coefficients(h_m, airspeed_mps, data: VehicleData, intensity: str,
+                               dt_s: float):
+    """One exact ZOH step of the Dryden filter (Eq. 2.53) driven by a constant unit input.
+
+    Parameters
+    ----------
+    h_m, airspeed_mps
+        Altitude [m] and airspeed V ≥ 0 [m/s] (arrays or scalars).
+    data, intensity
+        Vehicle data and Table 2.4 intensity (:func:`vega_model.wind.turbulence_params`).
+    dt_s
+        Step [s].
+
+    Returns
+    -------
+    a, g : numpy.ndarray
+        x_{k+1} = a x_k + g for the filter state x (output v = x) with input n_w = 1.
+
+    Notes
+    -----
+    The filter is :func:`vega_model.wind.dryden_ss`: ẋ = −(V/L_w) x + σ_w √(2V/(π L_w)) n_w
+    (airspeed form, docs/ENVIRONMENT_MODELS.md §3.2), so a = exp(−V dt/L_w) and
+    g = σ_w √(2V/(π L_w)) (1 − a)/(V/L_w), which tends to 0 as V → 0. The steady state is the
+    filter's DC gain σ_w √(2 L_w/(π V)).
+    """
+    sigma, ell = turbulence_params(np.asarray(h_m, dtype=float), data, intensity)
+    v = np.abs(np.asarray(airspeed_mps, dtype=float))
+    rate = v / ell
+    a = np.exp(-rate * dt_s)
+    moving = rate > 0.0
+    frac = np.where(moving, -np.expm1(-rate * dt_s) / np.where(moving, rate, 1.0), dt_s)
+    gain = sigma * np.sqrt(2.0 * v / (math.pi * ell))
+    return a, gain * frac
+
+
+class PlantWind:
+    """Wind v_w along +z, stepped at the physics rate (thesis §2.12.5).
+
+    Parameters
+    ----------
+    data
+        Vehicle data.
+    track
+        Parameters in force at each step: altitude ``h_m`` and airspeed ``v_mps`` of the
+        reference trajectory (the wind is then independent of the plant state, so the linear
+        and nonlinear plants see the same wind sequence).
+    profile, turbulence, gust, seed
+        As :class:`vega_model.wind.WindModel` (``gust`` a :class:`GustProfile` or None).
+    thesis_constant_dryden
+        If true, the turbulence is not the seeded random Dryden process but the thesis'
+        deterministic input (thesis §5.2, Fig. 5.2): W_w = 3 times the response of the
+        Dryden filter of intensity ``turbulence`` to a constant unit input, from a zero state
+        at the first step; discretised exactly per step with the parameters in force
+        (:func:`thesis_dryden_coefficients`).
+    dt_ms
+        Physics step [ms].
+    """
+
+    def __init__(self, data: VehicleData, track: ParameterTrack, *, profile: bool,
+                 turbulence: str, gust: GustProfile | None, seed: int,
+                 thesis_constant_dryden: bool = False, dt_ms: int = 1):
+        self._model = WindModel(data, profile=profile,
+                                turbulence="none" if thesis_constant_dryden else turbulence,
+                                gust=gust, seed=seed, dt_s=dt_ms / 1000.0)
+        self._track = track
+        self._dt_ms = int(dt_ms)
+        # a WindModel with every part off returns exactly 0.0: skip it
+        self._active = bool(profile) or gust is not None or (
+            turbulence != "none" and not thesis_constant_dryden)
+        self._thesis = bool(thesis_constant_dryden)
+        if self._thesis:
+            h = [p.h_m for p in track.params]
+            v = [p.v_mps for p in track.params]
+            a, g = thesis_dryden_coefficients(h, v, data, turbulence, dt_ms / 1000.0)
+            self._a, self._g = a.tolist(), g.tolist()
+        self._state = 0.0
+
+    def frame(self, t_ms: int, n_steps: int) -> list[float]:
+        """Advance ``n_steps`` physics steps from ``t_ms``; return v_w held over each [m/s]."""
+        track = self._track
+        params, t0, refresh, dt = track.params, track.t_start_ms, track.refresh_ms, self._dt_ms
+        step = self._model.step if self._active else None
+        out = []
+        for k in range(n_steps):
+            t = t_ms + k * dt
+            e = (t - t0) // refresh
+            if step is not None:
+                p = params[e]
+                w = step(t / 1000.0, p.h_m, p.v_mps)
+            else:
+                w = 0.0
+            if self._thesis:
+                x = self._state
+                w += THESIS_DRYDEN_WEIGHT * x
+                self._state = self._a[e] * x + self._g[e]
+            out.append(w)
+        return out
+
+
+class PlantStep:
+    """The vehicle (truth plant) integrated frame by frame at the physics rate.
+
+    Parameters
+    ----------
+    track
+        Parameters along the flight (its span is the run's span).
+    wind
+        The wind source (stepped here, once per physics step).
+    model
+        ``"linear"`` (exact ZOH of the frozen-time linear model per step) or ``"nonlinear"``
+        (:class:`vega_model.dynamics.NonlinearModel`, classical RK4 per step).
+    x0
+        Initial state in :data:`vega_model.dynamics.STATES` order.
+    beta0_rad
+        Nozzle angle at rest at the start (the actuator's initial state).
+
+    Notes
+    -----
+    Lockstep protocol: :meth:`output` is the truth at the current frame time t_f;
+    :meth:`advance` takes the actuator's samples for (t_f, t_f + frame] and returns the truth
+    at t_f + frame. The wind of a frame is drawn when the frame becomes current (so that the
+    truth at t_f reports the wind of the step starting at t_f).
+    """
+
+    def __init__(self, track: ParameterTrack, wind: PlantWind, model: str = "nonlinear",
+                 x0: Sequence[float] | None = None, beta0_rad: float = 0.0):
+        if model not in PLANT_MODELS:
+            raise ValueError(f"plant model must be one of {PLANT_MODELS}, got {model!r}")
+        self.track = track
+        self.model = model
+        self._wind = wind
+        self._dt_s = track.dt_ms / 1000.0
+        self._steps = track.frame_ms // track.dt_ms
+        x = np.zeros(_N) if x0 is None else np.array(x0, dtype=float)
+        if x.shape != (_N,) or not np.all(np.isfinite(x)):
+            raise ValueError(f"x0 must be {_N} finite values ({', '.join(STATES)})")
+        self._x = x
+        self._beta, self._rate = float(beta0_rad), 0.0
+        self._t_ms = track.t_start_ms
+        self._seq = 0
+        self._linear = track.linear_frames() if model == "linear" else None
+        self._winds = self._draw_winds()
+        self._out = self._truth()
+
+    @property
+    def t_ms(self) -> int:
+        """Current frame time [ms]."""
+        return self._t_ms
+
+    def output(self) -> TruthOut:
+        """Truth at the current frame time."""
+        return self._out
+
+    def _draw_winds(self) -> list[float]:
+        return self._wind.frame(self._t_ms, self._steps)
+
+    def advance(self, deflection_samples_rad: Sequence[float],
+                rate_samples_radps: Sequence[float]) -> TruthOut:
+        """Integrate one frame with the actuator's samples at the ends of its physics steps.
+
+        Parameters
+        ----------
+        deflection_samples_rad, rate_samples_radps
+            β and β̇ at t_f + dt, …, t_f + frame (``ActuatorState`` batches; β̈ follows from
+            the rates, see the module docstring).
+
+        Returns
+        -------
+        TruthOut
+            The truth at t_f + frame.
+
+        Raises
+        ------
+        ValueError
+            On a wrong number of samples, or past the end of the track's span.
+        """
+        steps = self._steps
+        if len(deflection_samples_rad) != steps or len(rate_samples_radps) != steps:
+            raise ValueError(f"need {steps} actuator samples per frame")
+        if self._t_ms >= self.track.t_end_ms:
+            raise ValueError(f"the plant is at the end of its span ({self._t_ms} ms)")
+        b0, r0 = self._beta, self._rate
+        inv_dt = 1.0 / self._dt_s
+        winds = self._winds
+        if self._linear is not None:
+            xu = self._x.tolist()
+            for k in range(steps):
+                b1, r1 = deflection_samples_rad[k], rate_samples_radps[k]
+                xu += (0.5 * (b0 + b1), (r1 - r0) * inv_dt, winds[k])
+                b0, r0 = b1, r1
+            f = (self._t_ms - self.track.t_start_ms) // self.track.frame_ms
+            self._x = self._linear.H[f] @ np.array(xu)
+        else:
+            track = self.track
+            model_at, t0, refresh, dt_ms = (track.nonlinear_model, track.t_start_ms,
+                                            track.refresh_ms, track.dt_ms)
+            h = self._dt_s
+            x = tuple(self._x.tolist())
+            t = self._t_ms
+            for k in range(steps):
+                b1, r1 = float(deflection_samples_rad[k]), float(rate_samples_radps[k])
+                u = (0.5 * (b0 + b1), (r1 - r0) * inv_dt, winds[k], 0.5 * (r0 + r1))
+                b0, r0 = b1, r1
+                x = model_at((t + k * dt_ms - t0) // refresh).rk4_step(x, u, h)
+            self._x = np.array(x)
+        self._beta, self._rate = b0, r0
+        self._t_ms += self.track.frame_ms
+        self._seq += 1
+        self._winds = self._draw_winds()
+        self._out = self._truth()
+        return self._out
+
+    def _truth(self) -> TruthOut:
+        t = self._t_ms
+        e = self.track.entry(t)
+        p = self.track.params[e]
+        w = self._winds[0]
+        s = self._x.tolist()
+        alpha = angle_of_attack(p, s, w)
+        if self._linear is not None:
+            q_alpha = float(self._linear.q_alpha_x[e] @ self._x) + float(
+                self._linear.q_alpha_wind[e]) * w
+        else:
+            q_alpha = float(nonlinear_outputs(p, s, (0.0, 0.0, w))[0])
+        return TruthOut(t, self._seq, s[0], s[1], s[2], s[3], alpha, q_alpha, p.q_pa, p.mach,
+                        p.v_mps, p.h_m, w, (s[4], s[5]), (s[6], s[7]))

@@ -1,0 +1,382 @@
+"""Scenarios: what one closed-loop run flies (span, initial state, plant, wind, noise, seed).
+
+One YAML file per scenario in ``vega_sim/scenarios/`` (the file name is the scenario name);
+:func:`load_scenario` validates a file completely — unknown or missing keys, wrong types,
+values out of range — and reports the first problem as one line naming the file and the
+field (``ValueError``). The in-process simulation and the SIL read the same files.
+
+File format (SI units, radians; ``#`` comments allowed)::
+
+    name: thesis                    # = the file name without .yaml
+    description: "..."
+    t_start_s: 10.0                 # whole 10 ms frames, 0 <= t_start < t_end
+    t_end_s: 90.0
+    plant: linear                   # linear | nonlinear
+    initial_state:                  # optional; missing states are 0
+      theta_rad: 0.0349             # also theta_dot_radps, z_m, z_dot_mps, q1, q2, q1_dot,
+                                    # q2_dot, beta_rad (nozzle at rest)
+    wind:
+      profile: false                # steady profile V_w(h), thesis Eq. 2.54
+      turbulence: light             # none | light | moderate | severe (thesis Table 2.4)
+      thesis_constant_dryden: true  # optional (false): the thesis' deterministic wind, below
+      gust: null                    # or {start_s: 46.3, amplitude_mps: 9, duration_s: 2};
+                                    # amplitude and duration default to vehicle.yaml wind.gust
+    sensor_noise: true              # INS noise (thesis Eq. 4.18)
+    seed: 1                         # integer >= 0
+    uncertainty: {}                 # optional: deviations by name (vega_model.uncertainty)
+
+``thesis_constant_dryden``: the thesis (§5.2, Fig. 5.2) set its wind input to a constant 1,
+which its weight W_w = 3 (§4.5.1) scaled before the Dryden filter (Eq. 2.53). Here: 3 × the
+response of the Dryden filter of the given intensity (airspeed form, docs/ENVIRONMENT_MODELS.md
+§3.2) to a unit step at t_start, discretised exactly per physics step — it rises to
+3·σ_w·√(2L_w/(πV)) (3 × the filter's DC gain) with time constant L_w/V. It replaces the random
+turbulence; the profile and the gust still add if switched on.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from importlib import resources
+from pathlib import Path
+from typing import Any, Mapping
+
+import yaml
+
+from vega_bus.timing import LoopTiming, seconds_to_ms
+
+from vega_model.dynamics import STATES
+from vega_sim.plant_step import PLANT_MODELS
+from vega_core.documents import read_text
+from vega_model.uncertainty import UncertaintySet
+from vega_model.vehicle_data import VehicleData, load_vehicle_data
+from vega_model.wind import INTENSITIES
+
+__all__ = ["GustSettings", "WindSettings", "InitialState", "Scenario", "scenario_names",
+           "scenario_path", "scenario_file", "load_scenario", "parse_scenario"]
+
+
+@dataclass(frozen=True)
+class GustSettings:
+    """A 1-cosine gust (:class:`vega_model.wind.GustProfile`): onset [s], peak [m/s], length [s]."""
+
+    start_s: float
+    amplitude_mps: float
+    duration_s: float
+
+
+@dataclass(frozen=True)
+class WindSettings:
+    """Wind of a scenario (thesis §2.12.5; see the module docstring)."""
+
+    profile: bool = True
+    turbulence: str = "light"
+    thesis_constant_dryden: bool = False
+    gust: GustSettings | None = None
+
+
+@dataclass(frozen=True)
+class InitialState:
+    """Initial plant state (:data:`vega_model.dynamics.STATES`) and nozzle angle, SI units."""
+
+    theta_rad: float = 0.0
+    theta_dot_radps: float = 0.0
+    z_m: float = 0.0
+    z_dot_mps: float = 0.0
+    q1: float = 0.0
+    q2: float = 0.0
+    q1_dot: float = 0.0
+    q2_dot: float = 0.0
+    beta_rad: float = 0.0
+
+    def plant_state(self) -> tuple[float, ...]:
+        """The 8 plant states in :data:`vega_model.dynamics.STATES` order."""
+        return tuple(getattr(self, name) for name in _STATE_FIELDS)
+
+
+# InitialState field of each plant state, in STATES order.
+_STATE_FIELDS = ("theta_rad", "theta_dot_radps", "z_m", "z_dot_mps", "q1", "q2", "q1_dot",
+                 "q2_dot")
+assert len(_STATE_FIELDS) == len(STATES)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario (build it with :func:`load_scenario` or :func:`parse_scenario`).
+
+    ``uncertainty`` holds (name, deviation) pairs, sorted by name; :attr:`deviations` gives
+    them as a dict.
+    """
+
+    name: str
+    description: str
+    t_start_s: float
+    t_end_s: float
+    plant: str = "nonlinear"
+    initial_state: InitialState = field(default_factory=InitialState)
+    wind: WindSettings = field(default_factory=WindSettings)
+    sensor_noise: bool = True
+    seed: int = 0
+    uncertainty: tuple[tuple[str, float], ...] = ()
+
+    def __post_init__(self):
+        try:
+            _validate(self, load_vehicle_data())
+        except _FieldError as exc:
+            raise ValueError(f"scenario '{self.name}': {exc}") from exc
+
+    @property
+    def t_start_ms(self) -> int:
+        """Start of the run [ms]."""
+        return seconds_to_ms(self.t_start_s, "t_start_s")
+
+    @property
+    def t_end_ms(self) -> int:
+        """End of the run [ms]."""
+        return seconds_to_ms(self.t_end_s, "t_end_s")
+
+    @property
+    def deviations(self) -> dict[str, float]:
+        """Uncertainty deviations by name (empty: nominal)."""
+        return dict(self.uncertainty)
+
+
+def _scenario_dir() -> Path:
+    return Path(str(resources.files("vega_sim").joinpath("scenarios")))
+
+
+def scenario_names() -> tuple[str, ...]:
+    """Names of the shipped scenarios, sorted."""
+    return tuple(sorted(p.stem for p in _scenario_dir().glob("*.yaml")))
+
+
+def scenario_path(name: str) -> Path:
+    """Path of the shipped scenario ``name``.
+
+    Raises
+    ------
+    ValueError
+        If there is no such scenario (the message lists the shipped ones).
+    """
+    path = _scenario_dir() / f"{name}.yaml"
+    if not path.is_file():
+        raise ValueError(f"unknown scenario '{name}' (shipped: {', '.join(scenario_names())})")
+    return path
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """Load and validate a scenario by shipped name (``"thesis"``) or by file path.
+
+    Parameters
+    ----------
+    name_or_path
+        A shipped scenario name, or a path to a ``.yaml`` file.
+
+    Raises
+    ------
+    ValueError
+        One line naming the file and the field.
+    """
+    path = scenario_file(name_or_path)
+    return parse_scenario(read_text(path, "scenario"), str(path), expected_name=path.stem)
+
+
+def scenario_file(name_or_path: str | Path) -> Path:
+    """The file a scenario argument names: a path (``.yaml``/``.yml`` or containing ``/``)
+    as given, else the shipped scenario of that name (:func:`scenario_path`)."""
+    text_path = str(name_or_path)
+    if isinstance(name_or_path, Path) or text_path.endswith((".yaml", ".yml")) or "/" in text_path:
+        return Path(name_or_path)
+    return scenario_path(text_path)
+
+
+# ----------------------------------------------------------------------------- parsing
+_TOP_REQUIRED = ("name", "description", "t_start_s", "t_end_s", "plant", "wind",
+                 "sensor_noise", "seed")
+_TOP_OPTIONAL = ("initial_state", "uncertainty")
+_WIND_REQUIRED = ("profile", "turbulence", "gust")
+_WIND_OPTIONAL = ("thesis_constant_dryden",)
+_GUST_KEYS = ("start_s", "amplitude_mps", "duration_s")
+_INITIAL_KEYS = tuple(f.name for f in fields(InitialState))
+
+
+class _FieldError(ValueError):
+    """A range check failed: ``field '<key>': <problem>`` (the caller names the source)."""
+
+    def __init__(self, key: str, problem: str):
+        super().__init__(f"field '{key}': {problem}")
+
+
+class _Where:
+    """Error messages ``<source>: field '<key>': <problem>``."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def error(self, key: str, problem: str) -> ValueError:
+        return ValueError(f"{self.source}: field '{key}': {problem}")
+
+
+def _mapping(value: Any, key: str, where: _Where, required, optional=()) -> Mapping:
+    if not isinstance(value, Mapping):
+        raise where.error(key, f"must be a mapping, got {type(value).__name__}")
+    prefix = f"{key}." if key else ""
+    for k in value:
+        if k not in required and k not in optional:
+            raise where.error(f"{prefix}{k}", "unknown key")
+    for k in required:
+        if k not in value:
+            raise where.error(f"{prefix}{k}", "missing")
+    return value
+
+
+def _number(value: Any, key: str, where: _Where) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise where.error(key, f"must be a number, got {value!r}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise where.error(key, f"must be finite, got {value!r}")
+    return x
+
+
+def _boolean(value: Any, key: str, where: _Where) -> bool:
+    if not isinstance(value, bool):
+        raise where.error(key, f"must be true or false, got {value!r}")
+    return value
+
+
+def _string(value: Any, key: str, where: _Where) -> str:
+    if not isinstance(value, str):
+        raise where.error(key, f"must be a string, got {value!r}")
+    return value
+
+
+def parse_scenario(text: str, source: str = "<scenario>",
+                   expected_name: str | None = None) -> Scenario:
+    """Parse and validate the YAML text of a scenario.
+
+    Parameters
+    ----------
+    text
+        YAML text (format: module docstring).
+    source
+        Name used in error messages (the file path).
+    expected_name
+        If given, the scenario's ``name`` must equal it (the file name).
+
+    Raises
+    ------
+    ValueError
+        One line: ``<source>: field '<key>': <problem>``.
+    """
+    data = load_vehicle_data()   # gust defaults; the range checks use the same file
+    where = _Where(source)
+    try:
+        tree = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line = f" (line {mark.line + 1})" if mark is not None else ""
+        raise ValueError(f"{source}: not valid YAML{line}") from None
+    if not isinstance(tree, Mapping):
+        raise ValueError(f"{source}: top level must be a mapping")
+    _mapping(tree, "", where, _TOP_REQUIRED, _TOP_OPTIONAL)
+    name = _string(tree["name"], "name", where)
+    if expected_name is not None and name != expected_name:
+        raise where.error("name", f"'{name}' differs from the file name '{expected_name}'")
+    plant = _string(tree["plant"], "plant", where)
+
+    initial = tree.get("initial_state")
+    initial = {} if initial is None else initial
+    _mapping(initial, "initial_state", where, (), _INITIAL_KEYS)
+    state = InitialState(**{k: _number(v, f"initial_state.{k}", where) for k, v in initial.items()})
+
+    wind = _mapping(tree["wind"], "wind", where, _WIND_REQUIRED, _WIND_OPTIONAL)
+    gust = None
+    if wind["gust"] is not None:
+        g = _mapping(wind["gust"], "wind.gust", where, ("start_s",), _GUST_KEYS)
+        gust = GustSettings(
+            start_s=_number(g["start_s"], "wind.gust.start_s", where),
+            amplitude_mps=_number(g.get("amplitude_mps", data["wind.gust.amplitude_mps"]),
+                                  "wind.gust.amplitude_mps", where),
+            duration_s=_number(g.get("duration_s", data["wind.gust.duration_s"]),
+                               "wind.gust.duration_s", where))
+    wind_settings = WindSettings(
+        profile=_boolean(wind["profile"], "wind.profile", where),
+        turbulence=_string(wind["turbulence"], "wind.turbulence", where),
+        thesis_constant_dryden=_boolean(wind.get("thesis_constant_dryden", False),
+                                        "wind.thesis_constant_dryden", where),
+        gust=gust)
+
+    uncertainty = tree.get("uncertainty")
+    uncertainty = {} if uncertainty is None else uncertainty
+    if not isinstance(uncertainty, Mapping):
+        raise where.error("uncertainty", f"must be a mapping, got {type(uncertainty).__name__}")
+    deviations = tuple(sorted(
+        (str(k), _number(v, f"uncertainty.{k}", where)) for k, v in uncertainty.items()))
+
+    seed = tree["seed"]
+    if isinstance(seed, bool) or not isinstance(seed, int):
+        raise where.error("seed", f"must be an integer, got {seed!r}")
+    values = dict(
+        name=name, description=_string(tree["description"], "description", where),
+        t_start_s=_number(tree["t_start_s"], "t_start_s", where),
+        t_end_s=_number(tree["t_end_s"], "t_end_s", where),
+        plant=plant, initial_state=state, wind=wind_settings,
+        sensor_noise=_boolean(tree["sensor_noise"], "sensor_noise", where),
+        seed=seed, uncertainty=deviations)
+    try:
+        return Scenario(**values)
+    except ValueError as exc:  # the range checks of the constructor: name the file instead
+        if isinstance(exc.__cause__, _FieldError):
+            raise ValueError(f"{source}: {exc.__cause__}") from None
+        raise
+
+
+def _validate(s: Scenario, data: VehicleData) -> None:
+    """Range, type and consistency checks of a scenario's fields (raises :class:`_FieldError`)."""
+    if not s.name or not isinstance(s.name, str):
+        raise _FieldError("name", "must be a non-empty string")
+    if s.plant not in PLANT_MODELS:
+        raise _FieldError("plant", f"must be one of {', '.join(PLANT_MODELS)}, got {s.plant!r}")
+    frame_ms = LoopTiming.from_vehicle(data).frame_ms
+    for key in ("t_start_s", "t_end_s"):
+        value = getattr(s, key)
+        try:
+            ms = seconds_to_ms(value, key)
+        except (TypeError, ValueError):
+            raise _FieldError(key, f"must be a whole number of ms, got {value!r}") from None
+        if ms < 0 or ms % frame_ms:
+            raise _FieldError(key, f"must be >= 0 and a multiple of the {frame_ms} ms frame, "
+                                   f"got {value!r}")
+    if not s.t_end_s > s.t_start_s:
+        raise _FieldError("t_end_s", f"must be later than t_start_s ({s.t_start_s!r})")
+    for f in fields(InitialState):
+        value = getattr(s.initial_state, f.name)
+        if (isinstance(value, bool) or not isinstance(value, (int, float))
+                or not math.isfinite(value)):
+            raise _FieldError(f"initial_state.{f.name}", f"must be a finite number, got {value!r}")
+    limit = data["actuator.position_limit_rad"]
+    if abs(s.initial_state.beta_rad) > limit:
+        raise _FieldError("initial_state.beta_rad", f"|beta| must be <= the stop {limit:.6g} rad")
+    if s.wind.turbulence not in INTENSITIES:
+        raise _FieldError("wind.turbulence", f"must be one of {', '.join(INTENSITIES)}, "
+                                             f"got {s.wind.turbulence!r}")
+    if s.wind.gust is not None and not s.wind.gust.duration_s > 0.0:
+        raise _FieldError("wind.gust.duration_s", f"must be > 0, got {s.wind.gust.duration_s!r}")
+    if not isinstance(s.sensor_noise, bool):
+        raise _FieldError("sensor_noise", f"must be true or false, got {s.sensor_noise!r}")
+    if isinstance(s.seed, bool) or not isinstance(s.seed, int) or s.seed < 0:
+        raise _FieldError("seed", f"must be an integer >= 0, got {s.seed!r}")
+    uset = UncertaintySet.from_vehicle(data)
+    for name, value in s.uncertainty:
+        if name not in uset.names:
+            raise _FieldError(f"uncertainty.{name}", f"unknown (known: {', '.join(uset.names)})")
+        par = uset[name]
+        if not par.lower <= value <= par.upper:
+            raise _FieldError(f"uncertainty.{name}",
+                              f"{value!r} is outside [{par.lower:g}, {par.upper:g}]")
+    delay = dict(s.uncertainty).get("delay_s", 0.0)
+    try:
+        LoopTiming.from_vehicle(data, delay)
+    except ValueError as exc:
+        raise _FieldError("uncertainty.delay_s", str(exc)) from None
