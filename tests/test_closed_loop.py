@@ -29,7 +29,7 @@ from vega_sim.device_steps import ActuatorStep, InsStep
 from vega_sim.plant_step import (THESIS_DRYDEN_WEIGHT, ParameterTrack, TruthOut,
                                   _expm_batched, parameters_at, thesis_dryden_coefficients)
 from vega_sim.assembly import derive_seeds, make_actuator, make_ins, make_plant
-from vega_sim.closed_loop import build_nodes, make_controller, run_scenario
+from vega_sim.closed_loop import build_steps, make_controller, run_scenario
 
 QUIET = WindSettings(profile=False, turbulence="none", gust=None)
 
@@ -336,7 +336,7 @@ def test_bad_inputs(pd_table, tmp_path):
         run_scenario(_scenario(t_start_s=0.0, t_end_s=110.0), pd_table)
     with pytest.raises(ValueError, match="unknown scenario"):
         run_scenario("no_such_scenario", pd_table)
-    nodes = build_nodes(_scenario(t_end_s=10.01), pd_table)
+    nodes = build_steps(_scenario(t_end_s=10.01), pd_table)
     with pytest.raises(ValueError, match="expected 10000 ms"):
         nodes.actuator.advance(10_010)
     frame = nodes.actuator.advance(10_000)

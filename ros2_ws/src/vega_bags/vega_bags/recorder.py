@@ -152,5 +152,5 @@ def _writer_callback(writer, name: str, counts: dict, progress=None):
 
 
 def main(argv=None) -> None:
-    """Console script ``vega_sil recorder``."""
+    """Console script ``vega_bags recorder``."""
     sys.exit(run_node("recorder", _recorder, argv))

@@ -8,7 +8,7 @@ shell every node shares: parameters, waiting, exit codes, signals).
 SIL node contract (as implemented)
 ----------------------------------
 Executables (``ros2 run`` layout): ``vega_plant plant``, ``vega_plant ins_sensor``,
-``vega_plant tvc_actuator``, ``vega_gnc tvc_controller``, ``vega_sil recorder``; node name =
+``vega_plant tvc_actuator``, ``vega_gnc tvc_controller``, ``vega_bags recorder``; node name =
 executable name; started as ``<prefix>/lib/PKG/EXE --ros-args --params-file FILE``.
 
 Parameters (one YAML, ``/**: ros__parameters:``; each node declares only what it uses and

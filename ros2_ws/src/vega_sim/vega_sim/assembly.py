@@ -1,5 +1,5 @@
 """Build the truth-side step objects of a scenario: the one recipe the in-process simulation
-(:func:`vega_sim.closed_loop.build_nodes`) and the SIL nodes (:mod:`vega_plant.nodes`) share.
+(:func:`vega_sim.closed_loop.build_steps`) and the SIL nodes (:mod:`vega_plant.nodes`) share.
 
 * :func:`derive_seeds` — the (wind, INS) generator seeds of a scenario seed;
 * :func:`loop_timing` — the loop timing of a scenario (vehicle.yaml + the ``delay_s``

@@ -44,7 +44,7 @@ from vega_sim.assembly import loop_timing, make_actuator, make_ins, make_plant
 
 from vega_sim.requirements import RequirementReport, RequirementSpec, evaluate_requirements
 
-__all__ = ["make_controller", "LoopSteps", "build_nodes", "SimulationResult", "run_scenario"]
+__all__ = ["make_controller", "LoopSteps", "build_steps", "SimulationResult", "run_scenario"]
 
 
 def make_controller(scenario: Scenario, table: ControllerTable, *,
@@ -65,7 +65,7 @@ class LoopSteps:
     actuator: ActuatorStep
 
 
-def build_nodes(scenario: Scenario, table: ControllerTable, *, seed: int | None = None,
+def build_steps(scenario: Scenario, table: ControllerTable, *, seed: int | None = None,
                 context: ModelContext | None = None, parameter_refresh_ms: int | None = None,
                 limits: RuntimeLimits = RuntimeLimits()) -> LoopSteps:
     """All four nodes of a scenario, ready at t_start (:func:`make_plant`, :func:`make_ins`,
@@ -174,7 +174,7 @@ def run_scenario(scenario: Scenario | str | Path, table: ControllerTable | str |
     seed
         Overrides the scenario's seed.
     context, parameter_refresh_ms, limits
-        See :func:`build_nodes`.
+        See :func:`build_steps`.
 
     Raises
     ------
@@ -186,7 +186,7 @@ def run_scenario(scenario: Scenario | str | Path, table: ControllerTable | str |
         scenario = load_scenario(scenario)
     if not isinstance(table, ControllerTable):
         table = load_controller_table(table)
-    nodes = build_nodes(scenario, table, seed=seed, context=context,
+    nodes = build_steps(scenario, table, seed=seed, context=context,
                         parameter_refresh_ms=parameter_refresh_ms, limits=limits)
     plant, ins, controller, actuator = nodes.plant, nodes.ins, nodes.controller, nodes.actuator
     at_ms = plant.track.at_ms
