@@ -1,12 +1,13 @@
 # VEGA TVC flight software: workspace set-up, tests and software-in-the-loop runs.
 #
 #   make setup   .venv from requirements.txt, colcon build of ros2_ws, offline_synthesis, `vega`
-#   make test    the whole pytest suite (sets up first)
+#   make lint    ruff (lint, docstrings) and the package layering contracts (pyproject.toml)
+#   make test    `make lint`, then the whole pytest suite (sets up first)
 #   make sil     fly the default SIL scenario into bags/ (sets up first; SIL_ARGS=...)
 #   make clean   remove the workspace build products and caches; `make distclean` also .venv
 #
 # Every step is incremental: a second `make setup` with nothing changed does nothing.
-# Environment rules (../shared/design/ENVIRONMENT.md): every process started from here discovers
+# Environment rules (docs/ENVIRONMENT_SETUP.md): every process started from here discovers
 # on localhost only; `vega`, `vega-env` and the test suite pick a ROS_DOMAIN_ID per run
 # (vega_bringup/rosenv.py) unless the caller exported one (1..101).
 
@@ -41,10 +42,10 @@ WS_SOURCES := $(filter-out $(foreach p,$(PY_PACKAGES),$(WS)/src/$(p)/$(p) $(WS)/
 COLCON_FLAGS := --symlink-install \
   --cmake-args -DBUILD_TESTING=OFF -DPython3_EXECUTABLE=$(VENV)/bin/python
 
-.PHONY: setup test sil clean distclean help
+.PHONY: setup lint test sil clean distclean help
 
 help:
-	@sed -n '2,11s/^# \{0,1\}//p' $(firstword $(MAKEFILE_LIST))
+	@sed -n '2,12s/^# \{0,1\}//p' $(firstword $(MAKEFILE_LIST))
 
 setup: $(REQUIREMENTS_STAMP) $(WS_STAMP) $(OFFLINE_STAMP) $(WRAPPERS)
 
@@ -92,7 +93,14 @@ $(VENV)/bin/vega-env: $(ROOT)/Makefile | $(VENV)/bin/python
 	  'exec "$$VIRTUAL_ENV/bin/python" -m vega_bringup.rosenv "$$@"' > $@
 	@chmod +x $@
 
-test: setup
+# The layering contracts run from $(WS): lint-imports puts its working directory first on
+# sys.path, and from the repository root the project directory offline_synthesis/ would shadow
+# the installed package offline_synthesis (the contracts would check nothing of it).
+lint: setup
+	cd $(ROOT) && $(VENV)/bin/ruff check ros2_ws/src offline_synthesis tests bench
+	cd $(WS) && $(VENV)/bin/vega-env lint-imports --no-logo --no-cache $(ROOT)/pyproject.toml
+
+test: setup lint
 	cd $(ROOT) && $(VENV)/bin/vega-env python -m pytest tests $(PYTEST_ARGS)
 
 # SIL_ARGS: more `vega sil run` arguments, e.g. make sil SIL_ARGS="--scenario thesis --seed 2"
@@ -100,7 +108,7 @@ sil: setup
 	$(VENV)/bin/vega sil run --out $(ROOT)/bags $(SIL_ARGS)
 
 clean:
-	rm -rf $(WS)/build $(WS)/install $(WS)/log $(ROOT)/.pytest_cache
+	rm -rf $(WS)/build $(WS)/install $(WS)/log $(ROOT)/.pytest_cache $(ROOT)/.ruff_cache
 	rm -rf $(ROOT)/offline_synthesis/*.egg-info $(ROOT)/offline_synthesis/build $(OFFLINE_STAMP)
 	find $(ROOT) -name .venv -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
 

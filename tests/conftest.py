@@ -17,6 +17,8 @@ from pathlib import Path
 
 import pytest
 
+from thesis_reference import reference_dir as _thesis_reference_dir
+
 _REPO_ROOT = Path(__file__).resolve().parent.parent
 
 try:
@@ -26,6 +28,13 @@ except ImportError:  # pytest started outside the project environment (no worksp
     from vega_bringup import rosenv
 
 __all__ = ["ros_domain_id", "ros_env"]
+
+# The cross-check against the thesis' full reference files is collected only where they are
+# present (../shared/reference in development checkouts and CI, or VEGA_THESIS_REFERENCE_DIR):
+# a clone without them collects nothing from it and reports no skip. The calibration tests
+# themselves read the committed table tests/data/thesis_reference_points.csv and always run.
+collect_ignore = ([] if _thesis_reference_dir() is not None
+                  else ["synthesis/test_trajectory_reference_crosscheck.py"])
 
 _DOMAIN_KEY = pytest.StashKey[int]()
 _SHM = Path("/dev/shm")

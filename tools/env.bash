@@ -1,7 +1,7 @@
 # shellcheck shell=bash
 # Enter the VEGA TVC project environment: `source tools/env.bash` (bash).
 #
-# Sets up what every project process needs (see ../shared/design/ENVIRONMENT.md):
+# Sets up what every project process needs (see docs/ENVIRONMENT_SETUP.md):
 #   - the virtual environment .venv (PATH, VIRTUAL_ENV) holding the ROS 2 Jazzy wheels;
 #   - AMENT_PREFIX_PATH with .venv (the wheels do not set it) and, on top, the colcon workspace
 #     ros2_ws/install through colcon's own local_setup.bash (PYTHONPATH, LD_LIBRARY_PATH, ...);

@@ -1,1 +1,3 @@
-"""Offline half of the VEGA TVC stack: trajectory, linearised plant grid, LPV synthesis, verification."""
+"""Offline half of the VEGA TVC stack: trajectory, linearised plant grid, LPV synthesis,
+verification.
+"""

@@ -1,4 +1,4 @@
-"""Solver-independent verification of an LPV synthesis (LPV_SYNTHESIS.md §5).
+"""Solver-independent verification of an LPV synthesis (docs/LPV_SYNTHESIS.md §5).
 
 The closed-loop certificate: in (x_s, x_K) coordinates (x_s the balanced plant state) the
 parameter-dependent Lyapunov matrix
@@ -87,7 +87,7 @@ def hinf_norm(A, B, C, D):
 
 def certificate_check(plant, result, rho_points, rate_vertices, controller="exact",
                       rate_term=None):
-    """Largest eigenvalue of the closed-loop certificate at each (ρ, ρ̇) (LPV_SYNTHESIS.md §5).
+    """Largest eigenvalue of the closed-loop certificate at each (ρ, ρ̇) (docs/LPV_SYNTHESIS.md §5).
 
     Parameters
     ----------

@@ -3,7 +3,7 @@
 At each grid point the LTI problem min_K ‖F_l(M(ρ_i), K)‖∞ is solved with SLICOT sb10ad
 (the routine behind python-control's ``hinfsyn``; Glover–Doyle formulas) on a
 state-balanced realisation of M, γ_opt by bisection on sb10ad's admissibility test. Its
-γ_i are lower bounds of the LPV γ (LPV_SYNTHESIS.md §5: any LPV controller frozen at ρ_i
+γ_i are lower bounds of the LPV γ (docs/LPV_SYNTHESIS.md §5: any LPV controller frozen at ρ_i
 is one LTI candidate); max_i γ_i ≤ ~0.8 leaves room for the LPV cost of a rate-bounded,
 parameter-dependent Lyapunov function (γ_LPV typically 1.0–1.2×).
 
@@ -157,7 +157,7 @@ def _admissible(plant: GeneralizedPlant, gamma: float):
     """Central controller at ``gamma`` (sb10ad job 4), or None if sb10ad refuses it."""
     try:
         return _sb10ad(plant, gamma, job=4)[1]
-    except Exception:  # slycot: SlycotArithmeticError (info 6-8, 12) when γ is too small
+    except Exception:  # noqa: BLE001 - slycot: SlycotArithmeticError (info 6-8, 12) when γ is too small
         return None
 
 
@@ -198,7 +198,8 @@ def frozen_point_gamma(plant: GeneralizedPlant, margin: float = 0.01) -> FrozenP
     Parameters
     ----------
     plant
-        The generalised plant M(ρ_i) (e.g. :func:`~offline_synthesis.interconnection.weighted_plant`).
+        The generalised plant M(ρ_i)
+        (e.g. :func:`~offline_synthesis.interconnection.weighted_plant`).
     margin
         The checked controller is sb10ad's central controller at (1 + margin)·γ_opt.
 
@@ -211,7 +212,7 @@ def frozen_point_gamma(plant: GeneralizedPlant, margin: float = 0.01) -> FrozenP
     γ_opt is found by :func:`optimal_gamma` on the state-balanced M rather than by
     ``control.hinfsyn``: hinfsyn starts sb10ad at γ = 1e100 with bisection *and* scan
     (job 3), whose scan stalled for more than 10 minutes on some weight sets; bisection on
-    the same routine's admissibility test gives the same γ (tests/test_interconnection.py
+    the same routine's admissibility test gives the same γ (tests/synthesis/test_interconnection.py
     compares them) in ~0.1 s. The controller at γ_opt itself is nearly singular (closed-loop
     poles → 0, ill-conditioned Riccati solutions), so the check closes the central
     controller at (1 + margin)·γ_opt around the *unbalanced* M: it must be stable with

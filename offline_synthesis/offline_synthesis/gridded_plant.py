@@ -6,7 +6,7 @@ n_y measurements):
 
     ẋ = A x + B1 w + B2 u,   e = C1 x + D11 w + D12 u,   y = C2 x + D21 w + D22 u.
 
-Nothing here is specific to the launcher; ../../shared/design/LPV_SYNTHESIS.md §0 describes the
+Nothing here is specific to the launcher; docs/LPV_SYNTHESIS.md §0 describes the
 VEGA instance (ρ = v_x, nine grid points).
 """
 

@@ -1,8 +1,10 @@
-"""Grid-based, rate-bounded LPV H∞ (induced L2) output-feedback synthesis (LPV_SYNTHESIS.md §2–§3).
+"""Grid-based, rate-bounded LPV H∞ (induced L2) output-feedback synthesis.
+
+The mathematics: docs/LPV_SYNTHESIS.md §2–§3.
 
 For the normalised plant (plant_scaling.py) find X(ρ), Y(ρ) = Σ_k φ_k(θ) X_k, Y_k with the basis
 φ = [1, θ, θ²] (θ the normalised scheduling variable) and g = 1/γ such that at every grid point
-ρ_i and every rate vertex ν the LMIs of LPV_SYNTHESIS.md §2 hold (Wu, Yang, Packard & Becker
+ρ_i and every rate vertex ν the LMIs of docs/LPV_SYNTHESIS.md §2 hold (Wu, Yang, Packard & Becker
 1996; the elimination form of Gahinet & Apkarian 1994; Apkarian & Adams 1998):
 
     LMI-X:  [ÂX + XÂᵀ − ∂X[ν] − B2B2ᵀ,  XC11ᵀ,  gB̂ ;  C11X, −I, gD_r ;  gB̂ᵀ, gD_rᵀ, −I] < 0
@@ -164,7 +166,7 @@ class LpvSynthesisResult:
             The original plant at ρ. When given, K is reconstructed exactly at ρ; otherwise K
             is the exact controller at a grid value or the linear interpolation, in ρ, of the
             two neighbouring grid controllers, with ρ clipped to the grid range (as in the
-            thesis' simulations, LPV_SYNTHESIS.md §6).
+            thesis' simulations, docs/LPV_SYNTHESIS.md §6).
         rate_term : np.ndarray, optional
             With ``plant_point``: the plant's rate term N(ρ) (original coordinates), so that
             K is reconstructed for A + ρ̇ N as at the grid points of a plant with a rate term.
@@ -457,7 +459,7 @@ def _stage2(layout, n, eps, g, bound, solver, robustness):
 
     With g fixed the last block row of LMI-X and LMI-Y is constant, and they enter in their
     Schur-complemented form (one block smaller, same constraint). ``robustness`` is the margin
-    τ of :func:`_with_margin`; 0 gives the plain stage 2 of LPV_SYNTHESIS.md §3.
+    τ of :func:`_with_margin`; 0 gives the plain stage 2 of docs/LPV_SYNTHESIS.md §3.
     """
     Xk, Yk = _variables(layout, n)
     t = cp.Variable(name="t")
@@ -500,7 +502,7 @@ def _check_arguments(plant, rate_bounds, basis, backoff, eps):
 def synthesize(plant, rate_bounds=None, basis="quadratic", x_constant=False, backoff=1.2,
                solver="CLARABEL", fallback="SCS", eps=1e-6, regularisation=1e-6, bound=1e2,
                robustness=3e-2, balance="riccati"):
-    """Rate-bounded LPV H∞ output-feedback synthesis on a grid (LPV_SYNTHESIS.md §1–§5).
+    """Rate-bounded LPV H∞ output-feedback synthesis on a grid (docs/LPV_SYNTHESIS.md §1–§5).
 
     Parameters
     ----------

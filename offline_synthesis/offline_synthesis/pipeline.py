@@ -24,13 +24,15 @@ from typing import Callable
 
 import numpy as np
 
+from vega_core.errors import BadArgument
+
 from offline_synthesis.export import write_controller_table
 from offline_synthesis.frozen_point import frozen_point_gamma
 from offline_synthesis.gridded_plant import GriddedPlant
 from offline_synthesis.interconnection import GRID_TIMES_S, weighted_plant
 from offline_synthesis.lpv_synthesis import synthesize
-from offline_synthesis.verification import (bending_rate_term, dense_certificate, frozen_point_sweep,
-                           loop_margins, time_at_velocity)
+from offline_synthesis.verification import (bending_rate_term, dense_certificate,
+                                            frozen_point_sweep, loop_margins, time_at_velocity)
 from offline_synthesis.weights import WEIGHT_SETS
 
 __all__ = ["thesis_scenario_metrics", "GRIDS", "RATE_BOXES", "grid_times",
@@ -58,7 +60,7 @@ def grid_times(kind: str, context, weights=None) -> np.ndarray:
         fc = context.conditions
         v_lo, v_hi = np.interp([2.0, 100.0], fc.t_s, fc.column("v_mps"))
         return time_at_velocity(np.linspace(v_lo, v_hi, _FULL_GRID_POINTS), context)
-    raise ValueError(f"--grid {kind!r}: expected one of {', '.join(GRIDS)}")
+    raise BadArgument(f"--grid {kind!r}: expected one of {', '.join(GRIDS)}")
 
 
 def _refined_grid(context, weights, max_gap_s: float = 5.0) -> np.ndarray:
@@ -122,7 +124,7 @@ def rate_box(bounds, kind: str = "with_frozen") -> tuple[float, float]:
         return lo, hi
     if kind == "with_frozen":
         return min(lo, 0.0), hi
-    raise ValueError(f"--rate-box {kind!r}: expected one of {', '.join(RATE_BOXES)}")
+    raise BadArgument(f"--rate-box {kind!r}: expected one of {', '.join(RATE_BOXES)}")
 
 
 def gridded_plant(times_s, weights, context):
@@ -184,7 +186,7 @@ def run_synthesis(grid: str = "refined", weights: str = "shipped", out: str | Pa
     from vega_model.vehicle_data import load_vehicle_data
 
     if weights not in WEIGHT_SETS:
-        raise ValueError(f"--weights {weights!r}: expected one of {', '.join(WEIGHT_SETS)}")
+        raise BadArgument(f"--weights {weights!r}: expected one of {', '.join(WEIGHT_SETS)}")
     ctx = context or default_context()
     ws = WEIGHT_SETS[weights]
     out = Path(out) if out else DEFAULT_TABLE
@@ -200,7 +202,8 @@ def run_synthesis(grid: str = "refined", weights: str = "shipped", out: str | Pa
     rep.stage_times_s["interconnection"] = clock() - t0
     progress(f"[1/7] weighted plant M(rho): {len(times)} grid points, {plant.A.shape[-1]} states, "
              f"rate box [{rates[0]:.2f}, {rates[1]:.2f}] m/s^2 ({box}; trajectory "
-             f"[{trajectory_rates[0]:.2f}, {trajectory_rates[1]:.2f}]) ({rep.stage_times_s['interconnection']:.1f} s)")
+             f"[{trajectory_rates[0]:.2f}, {trajectory_rates[1]:.2f}]) "
+             f"({rep.stage_times_s['interconnection']:.1f} s)")
 
     t0 = clock()
     rep.gamma_lti = [float(frozen_point_gamma(p).gamma) for p in points]

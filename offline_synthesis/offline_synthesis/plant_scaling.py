@@ -1,4 +1,4 @@
-"""Pre-processing of the gridded plant before the LPV LMIs (LPV_SYNTHESIS.md §1).
+"""Pre-processing of the gridded plant before the LPV LMIs (docs/LPV_SYNTHESIS.md §1).
 
 The transformations, all undone or cancelled in the closed loop:
 
@@ -25,8 +25,8 @@ inverses of the H2 control and filter Riccati solutions P and S of the normalise
 so a constant T_b that balances X_g = mean_i (P_i + μI)⁻¹ against Y_g = mean_i (S_i + μI)⁻¹
 (T_b⁻¹ X_g T_b⁻ᵀ = T_bᵀ Y_g T_b = Σ, the LQG balancing of Jonckheere & Silverman 1983)
 makes the LMI variables close to diagonal and well scaled. On the hard LTI test plants
-(tests/test_lmi_lti.py) the diagonal balancing alone gave a stage-1 γ 1.3 % above the sb10ad
-optimum (bending modes with a near-cancelling notch) or answers that failed the eigenvalue
+(tests/synthesis/test_lmi_lti.py) the diagonal balancing alone gave a stage-1 γ 1.3 % above the
+sb10ad optimum (bending modes with a near-cancelling notch) or answers that failed the eigenvalue
 checks (mixed sensitivity with a 2e-3 rad/s weight pole); with it 0.33 % and 0.012 %.
 """
 
@@ -70,14 +70,17 @@ class NormalisedPoint:
 
     @property
     def n_x(self):
+        """Number of states."""
         return self.A.shape[0]
 
     @property
     def n_e1(self):
+        """Number of performance outputs e₁ (those without the control input)."""
         return self.C1.shape[0] - self.B2.shape[1]
 
     @property
     def n_w1(self):
+        """Number of disturbance inputs w₁ (those without the measurement noise)."""
         return self.B1.shape[1] - self.C2.shape[0]
 
     @property
@@ -92,21 +95,25 @@ class NormalisedPoint:
         n_y = self.C2.shape[0]
         return np.hstack([np.zeros((n_y, self.n_w1)), np.eye(n_y)])
 
-    # Partition and the derived matrices of LPV_SYNTHESIS.md §1, step 4.
+    # Partition and the derived matrices of docs/LPV_SYNTHESIS.md §1, step 4.
     @property
     def C11(self):
+        """Rows of C₁ for e₁."""
         return self.C1[:self.n_e1]
 
     @property
     def C12(self):
+        """Rows of C₁ for e₂."""
         return self.C1[self.n_e1:]
 
     @property
     def B11(self):
+        """Columns of B₁ for w₁."""
         return self.B1[:, :self.n_w1]
 
     @property
     def B12(self):
+        """Columns of B₁ for w₂."""
         return self.B1[:, self.n_w1:]
 
     @cached_property
@@ -179,6 +186,7 @@ class PlantScaling:
         Parameters
         ----------
         point : PlantPoint
+            One grid point of the plant.
 
         Returns
         -------
@@ -255,6 +263,7 @@ def plant_scaling(plant, balance="riccati"):
     Parameters
     ----------
     plant : GriddedPlant
+        The plant on its grid.
     balance : {"riccati", "diagonal"}
         "diagonal": only the Osborne balancing of §1; "riccati" (default): followed by the
         constant Riccati balancing of the module docstring (skipped if a Riccati equation has

@@ -1,4 +1,4 @@
-"""Controller reconstruction from the LPV Lyapunov variables X(ρ), Y(ρ) (LPV_SYNTHESIS.md §4).
+"""Controller reconstruction from the LPV Lyapunov variables X(ρ), Y(ρ) (docs/LPV_SYNTHESIS.md §4).
 
 Explicit output-feedback formulas of Wu, Yang, Packard & Becker (1996) for the normalised plant
 (plant_scaling.py: D12 = [0; I], D21 = [0 I], D22 = 0), written with the variables X, Y of the
@@ -17,7 +17,7 @@ __all__ = ["normalised_controller", "undo_loop_shift", "controller_at"]
 
 
 def normalised_controller(point, X, Y, X_dot, gamma):
-    """Controller (A_K, B_K, C_K, D_K) for the normalised plant, LPV_SYNTHESIS.md §4.
+    """Controller (A_K, B_K, C_K, D_K) for the normalised plant, docs/LPV_SYNTHESIS.md §4.
 
     Parameters
     ----------
@@ -87,7 +87,7 @@ def normalised_controller(point, X, Y, X_dot, gamma):
 
 
 def undo_loop_shift(controller, point):
-    """Controller for the original channels from the normalised one (LPV_SYNTHESIS.md §4).
+    """Controller for the original channels from the normalised one (docs/LPV_SYNTHESIS.md §4).
 
     With Δ = (I − D_K F_T)⁻¹:
     A = A_K + B_K F_T Δ C_K,  B = B_K (I + F_T Δ D_K) T_Lᵀ,  C = T_R Δ C_K,  D = T_R Δ D_K T_Lᵀ.

@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vega_core.errors import BadInput
 from vega_model import aero as _aero_module
 from vega_model import atmosphere as _atmosphere_module
 from vega_model import flight_conditions as _fc_module
@@ -70,7 +71,7 @@ _GENERATOR = "offline_synthesis.trajectory"
 _REGENERATE = "vega trajectory --out ros2_ws/src/vega_model/vega_model/data/flight_conditions.csv"
 
 
-class TrajectoryError(ValueError):
+class TrajectoryError(BadInput):
     """The ascent cannot be simulated with the given data, or the table cannot be written."""
 
 

@@ -1,6 +1,6 @@
 """Verification of a synthesised LPV controller, independent of the solver's own claims.
 
-* :func:`dense_certificate` — the closed-loop certificate (LPV_SYNTHESIS.md §5) on a grid
+* :func:`dense_certificate` — the closed-loop certificate (docs/LPV_SYNTHESIS.md §5) on a grid
   denser than the synthesis grid, at every rate vertex, with the plant rebuilt from the model
   at each point.
 * :func:`frozen_point_sweep` — closed-loop stability and the weighted H∞ norm (SLICOT ab13dd)
@@ -169,8 +169,11 @@ class LoopMargins:
 
 
 def loop_margins(result, context, t_s: float, rate_mps2: float,
-                 w_radps=np.logspace(-3, 3.3, 6000)) -> LoopMargins:
-    """Margins of L(jω) = −K(jω) P_yu(jω) (plant without weights, thesis §5.1)."""
+                 w_radps=None) -> LoopMargins:
+    """Margins of L(jω) = −K(jω) P_yu(jω) (plant without weights, thesis §5.1), on the
+    frequency grid ``w_radps`` [rad/s] (default: 6000 points log-spaced over 1e-3 … 10^3.3)."""
+    if w_radps is None:
+        w_radps = np.logspace(-3, 3.3, 6000)
     plant = plant_for_simulation(t_s, context)
     p = context.parameters(t_s)
     n_u = 1

@@ -50,7 +50,8 @@ class WeightSet:
     command_z_m: float = _w(1.0, "m", "Eq. 4.17: W_zc = 1 (1 m drift command)")
     command_z_dot_mps: float = _w(1.0, "m/s", "Eq. 4.17: W_żc = 1 (1 m/s drift-rate command)")
     # --- W_n, sensor noise (Eq. 4.18) ---
-    noise_scale: float = _w(1.0, "1", "Eq. 4.18: W_n = the INS noise of vehicle.yaml (ins.noise_*) times this")
+    noise_scale: float = _w(1.0, "1", "Eq. 4.18: W_n = the INS noise of vehicle.yaml "
+                                           "(ins.noise_*) times this")
     # --- W_w and the wind filter (§4.5.1, Eq. 2.53) ---
     wind_sigmas: float = _w(3.0, "1", "§4.5.1: W_w = 3 standard deviations")
     wind_channel: str = _w("dryden", "-", "'dryden': W_w × Dryden filter (Eq. 2.53, airspeed form, "
@@ -58,7 +59,8 @@ class WeightSet:
                            "(Eq. 2.54 + Table 2.4) and corner V/L_w(h)")
     turbulence_intensity: str = _w("light", "-", "§2.12.5: light turbulence (Table 2.4)")
     wind_floor: float = _w(1e-5, "1", "regularity floor: σ_w(h) ≥ this × max σ_w of Table 2.4, "
-                           "so the wind still reaches the drift above 20 km (LPV_SYNTHESIS §7)")
+                           "so the wind still reaches the drift above 20 km "
+                           "(docs/LPV_SYNTHESIS.md §7)")
     # --- W_θe, sensitivity bound (Eqs. 4.19-4.20) ---
     sensitivity_peak: float = _w(3.16, "1", "Eq. 4.20: W_θe = (π/180 · 3.16)⁻¹ (‖S_θ‖ = 10 dB)")
     # --- W_θz, complementary-sensitivity bound (Eq. 4.21) ---
@@ -70,7 +72,8 @@ class WeightSet:
     z_dot_max_mps: float = _w(15.0, "m/s", "Eq. 4.22 / Table 3.1: |ż| < 15 m/s")
     # --- W_Qα (Eq. 4.24) ---
     alpha_max_deg: float = _w(3.0, "deg", "Eq. 4.24: α_max = 3°")
-    q_alpha_q_floor_pa: float = _w(0.0, "Pa", "Eq. 4.24 uses Q(ρ); W_Qα = (α_max·max(Q(ρ), this))⁻¹ "
+    q_alpha_q_floor_pa: float = _w(0.0, "Pa", "Eq. 4.24 uses Q(ρ); "
+                                   "W_Qα = (α_max·max(Q(ρ), this))⁻¹ "
                                    "(0: the thesis' pure α bound)")
     # --- W_β (Eqs. 4.25-4.26) ---
     beta_lf_deg: float = _w(6.5, "deg", "Eq. 4.25: l_u = β_max = 6.5° (Table 3.1)")

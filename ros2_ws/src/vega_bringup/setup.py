@@ -1,33 +1,5 @@
-"""Build script of the ament_python package vega_bringup (layout of ``ros2 pkg create``).
+"""Build script of the ament_python package vega_bringup (metadata: setup.cfg)."""
 
-Executables go to ``lib/vega_bringup`` (setup.cfg), where ``ros2 run vega_bringup EXE`` and
-``vega node vega_bringup EXE`` find them.
-"""
-from glob import glob
+from setuptools import setup
 
-from setuptools import find_packages, setup
-
-package_name = 'vega_bringup'
-
-data_files = [
-    ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
-    ('share/' + package_name, ['package.xml']),
-]
-config_files = sorted(path for path in glob('config/*') if not path.endswith('~'))
-if config_files:
-    data_files.append(('share/' + package_name + '/config', config_files))
-
-setup(
-    name=package_name,
-    version='0.1.0',
-    packages=find_packages(exclude=['test']),
-    package_data={package_name: []},
-    data_files=data_files,
-    install_requires=['setuptools'],
-    zip_safe=True,
-    maintainer='VEGA TVC maintainers',
-    maintainer_email='maintainers@vega-tvc.invalid',
-    description='Bring-up of VEGA TVC SIL runs: run planning and parameters files, the node supervisor, the ROS environment rules, executable lookup.',
-    license='Apache-2.0',
-    entry_points={'console_scripts': []},
-)
+setup()

@@ -50,8 +50,12 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from vega_core.errors import BadInput, one_line
+
 from vega_bus import topics
 from vega_bus.schedule import CLOCK_EVERY_FRAMES, RunInfo
+from vega_bus.timing import NS_PER_MS
+from vega_bus.wire import STATUS_NAMES
 
 from vega_bags import bagio
 from vega_sim.closed_loop import SimulationResult
@@ -60,7 +64,6 @@ from vega_sim.requirements import RequirementReport, RequirementSpec
 __all__ = ["HealthResult", "RunContext", "BagCheck", "run_context", "bag_result",
            "check_run_bag", "check_bag"]
 
-_NS_PER_MS = 1_000_000
 _DATA = (topics.TRUTH, topics.INS, topics.TVC_CMD, topics.ACTUATOR)
 
 
@@ -142,9 +145,8 @@ class BagCheck:
 
     def status_counts(self) -> dict[str, int]:
         """Number of commands per TvcCommand status name."""
-        names = {0: "OK", 1: "HOLD_LAST", 2: "VELOCITY_CLAMPED", 3: "SAFE_ZERO", 4: "LIMITED"}
         values, counts = np.unique(self.result.cmd_status, return_counts=True)
-        return {names.get(int(v), str(int(v))): int(c) for v, c in zip(values, counts)}
+        return {STATUS_NAMES.get(int(v), str(int(v))): int(c) for v, c in zip(values, counts)}
 
     def table(self) -> str:
         """Requirement table (thesis Table 5.1 form, with margins), health table, verdict."""
@@ -226,8 +228,8 @@ def run_context(bag: bagio.RunBag) -> RunContext:
     if text is not None:
         try:
             scenario = parse_scenario(text, f"{bag.path}: metadata {bagio.META_SCENARIO_YAML}")
-        except ValueError as exc:
-            problems.append(" ".join(str(exc).split()))
+        except BadInput as exc:
+            problems.append(one_line(exc))
     if scenario is None:
         from vega_bus.timing import LoopTiming
         from vega_model.vehicle_data import load_vehicle_data
@@ -240,8 +242,8 @@ def run_context(bag: bagio.RunBag) -> RunContext:
     try:
         info = RunInfo(scenario.name, int(seed) if seed.isdigit() else scenario.seed,
                        scenario.t_start_ms, scenario.t_end_ms, timing).check()
-    except ValueError as exc:
-        problems.append(" ".join(str(exc).split()))
+    except BadInput as exc:
+        problems.append(one_line(exc))
     return RunContext(scenario, timing, info, float(scenario.initial_state.beta_rad),
                       tuple(problems))
 
@@ -251,7 +253,7 @@ def _actuator_times_ms(act: bagio.TopicColumns) -> np.ndarray:
     """Instant of each physics-rate sample [ms]: sample j of k at S − (k−1−j)·dt."""
     counts = act.counts["deflection_samples_rad"]
     period_ms = np.repeat(np.rint(act["sample_period_s"] * 1000.0).astype(np.int64), counts)
-    stamp_ms = np.repeat(act["stamp_ns"] // _NS_PER_MS, counts)
+    stamp_ms = np.repeat(act["stamp_ns"] // NS_PER_MS, counts)
     ends = np.cumsum(counts)
     back = np.repeat(ends, counts) - 1 - np.arange(int(ends[-1]) if ends.size else 0)
     return stamp_ms - back * period_ms
@@ -271,7 +273,7 @@ def _held_command_rad(cmd: bagio.TopicColumns | None, act_t_ms: np.ndarray, dt_m
     values = cmd["deflection_cmd_rad"][ok]
     if values.size == 0:
         return held
-    apply_ms = cmd["stamp_ns"][ok] // _NS_PER_MS + ctx.timing.actuator_latency_ms
+    apply_ms = cmd["stamp_ns"][ok] // NS_PER_MS + ctx.timing.actuator_latency_ms
     idx = np.searchsorted(apply_ms, act_t_ms - dt_ms, side="right") - 1
     return np.where(idx >= 0, values[np.clip(idx, 0, None)], ctx.beta0_rad)
 
@@ -315,7 +317,7 @@ def bag_result(bag: bagio.RunBag, ctx: RunContext | None = None) -> SimulationRe
     seed = bag.metadata.get(bagio.META_SEED, "")
     return SimulationResult(
         scenario=ctx.scenario, seed=int(seed) if seed.lstrip("-").isdigit() else -1,
-        t_ms=truth["stamp_ns"] // _NS_PER_MS, theta_rad=truth["pitch_rad"],
+        t_ms=truth["stamp_ns"] // NS_PER_MS, theta_rad=truth["pitch_rad"],
         theta_dot_radps=truth["pitch_rate_radps"], z_m=truth["drift_m"],
         z_dot_mps=truth["drift_rate_mps"], alpha_rad=truth["aoa_rad"],
         q_alpha_pa_rad=truth["q_alpha_pa_rad"], q_pa=truth["dynamic_pressure_pa"],
@@ -324,13 +326,13 @@ def bag_result(bag: bagio.RunBag, ctx: RunContext | None = None) -> SimulationRe
         bending_qdot=truth["bending_qdot"], act_t_ms=act_t_ms, beta_rad=beta,
         beta_dot_radps=rate, beta_ddot_radps2=accel,
         beta_cmd_rad=_held_command_rad(cmd, act_t_ms, dt_ms, ctx),
-        ins_sample_ms=col(ins, "sample_stamp_ns", np.int64) // _NS_PER_MS,
-        ins_stamp_ms=col(ins, "stamp_ns", np.int64) // _NS_PER_MS,
+        ins_sample_ms=col(ins, "sample_stamp_ns", np.int64) // NS_PER_MS,
+        ins_stamp_ms=col(ins, "stamp_ns", np.int64) // NS_PER_MS,
         ins_theta_rad=col(ins, "pitch_rad"), ins_theta_dot_radps=col(ins, "pitch_rate_radps"),
         ins_z_m=col(ins, "drift_m"), ins_z_dot_mps=col(ins, "drift_rate_mps"),
         ins_v_mps=col(ins, "velocity_mps"),
-        cmd_sample_ms=col(cmd, "sample_stamp_ns", np.int64) // _NS_PER_MS,
-        cmd_stamp_ms=col(cmd, "stamp_ns", np.int64) // _NS_PER_MS,
+        cmd_sample_ms=col(cmd, "sample_stamp_ns", np.int64) // NS_PER_MS,
+        cmd_stamp_ms=col(cmd, "stamp_ns", np.int64) // NS_PER_MS,
         cmd_rad=col(cmd, "deflection_cmd_rad"), cmd_v_mps=col(cmd, "scheduling_velocity_mps"),
         cmd_status=col(cmd, "status", np.int64))
 
@@ -413,7 +415,7 @@ def _check_lockstep(bag: bagio.RunBag, timing) -> HealthResult:
         if name not in period_ms:     # /clock: its exact stamps are checked under coverage
             continue
         step = np.diff(stamp)
-        bad = np.flatnonzero(step != period_ms[name] * _NS_PER_MS)
+        bad = np.flatnonzero(step != period_ms[name] * NS_PER_MS)
         if bad.size:
             i = int(bad[0])
             kind = "stalled" if step[i] <= 0 else f"advanced {step[i] / 1e6:g} ms"
@@ -421,7 +423,7 @@ def _check_lockstep(bag: bagio.RunBag, timing) -> HealthResult:
                             f"+{period_ms[name]} ms); {bad.size} in all")
         if name in latency_ms:
             lag = stamp - cols["sample_stamp_ns"]
-            bad = np.flatnonzero(lag != latency_ms[name] * _NS_PER_MS)
+            bad = np.flatnonzero(lag != latency_ms[name] * NS_PER_MS)
             if bad.size:
                 i = int(bad[0])
                 problems.append(f"{name} stamp − sample_stamp = {lag[i] / 1e6:g} ms at "
@@ -460,13 +462,13 @@ def _check_coverage(bag: bagio.RunBag, ctx: RunContext) -> HealthResult:
         if n == 0 or span is None:
             continue
         got0, got1 = int(cols["stamp_ns"][0]), int(cols["stamp_ns"][-1])
-        if (got0, got1) != (span[0] * _NS_PER_MS, span[1] * _NS_PER_MS):
+        if (got0, got1) != (span[0] * NS_PER_MS, span[1] * NS_PER_MS):
             problems.append(f"{name} spans {_ms(got0)} … {_ms(got1)}, expected "
                             f"{span[0] / 1e3:.3f} s … {span[1] / 1e3:.3f} s")
     clock = bag.topics.get(topics.CLOCK.name)
     ticks = np.array([info.frame_start(k) for k in info.clock_frames()], dtype=np.int64)
     got = np.zeros(0, dtype=np.int64) if clock is None else clock["stamp_ns"]
-    if got.shape != ticks.shape or not np.array_equal(got, ticks * _NS_PER_MS):
+    if got.shape != ticks.shape or not np.array_equal(got, ticks * NS_PER_MS):
         problems.append(f"{topics.CLOCK.name}: {got.size} ticks, not the {ticks.size} of the "
                         f"schedule (every {CLOCK_EVERY_FRAMES} frames and t_end)")
     truth = bag[topics.TRUTH.name]["stamp_ns"]

@@ -19,9 +19,12 @@ Pieces:
 * :class:`RunBagWriter` — open → :meth:`~RunBagWriter.write` (topic, log time, raw bytes) →
   close; a context manager that closes the bag on error too, so that what was written stays
   readable.
+* :func:`cdr_offsets` — where each field of a raw message sits (the computed CDR layout the
+  fast reader uses; the recorder reads stamps and sequence numbers there).
 * :func:`read_run_bag` — the whole bag as per-topic numpy columns (:class:`TopicColumns`) plus
   the custom metadata (:class:`RunBag`). A missing, corrupt or foreign bag (no vega topic, or
-  a vega topic with another type) raises :class:`BagError`, a ``ValueError`` with one line.
+  a vega topic with another type) raises :class:`BagError` (a
+  :class:`vega_core.errors.BadFile`) with one line.
 
 Columns (:class:`TopicColumns`): ``log_time_ns``; ``stamp_ns`` (header stamp; ``clock`` of
 /clock); ``<name>_ns`` for other ``builtin_interfaces/Time`` fields (``sample_stamp_ns``);
@@ -42,13 +45,17 @@ from typing import Any, Iterator, Mapping
 
 import numpy as np
 
-from vega_bus import topics
+from vega_core.documents import read_text
+from vega_core.errors import BadFile, one_line
+
+from vega_bus import qos, topics
+from vega_bus.timing import NS_PER_S
 
 __all__ = ["BagError", "META_SCENARIO", "META_SCENARIO_YAML", "META_SEED",
            "META_CONTROLLER_TABLE", "META_CONTROLLER_TABLE_SHA256", "META_GIT_REVISION",
            "REQUIRED_METADATA", "vega_typestore", "topic_qos", "run_metadata",
            "git_revision", "file_sha256", "RunBagWriter", "TopicColumns", "RunBag",
-           "read_run_bag", "iter_raw_messages"]
+           "read_run_bag", "iter_raw_messages", "cdr_offsets"]
 
 # custom_data keys (rosbag2 metadata; values are strings)
 META_SCENARIO = "vega.scenario"
@@ -64,7 +71,7 @@ REQUIRED_METADATA = (META_SCENARIO, META_SCENARIO_YAML, META_SEED, META_CONTROLL
 _VEGA_TYPES = tuple(sorted({t.type_name for t in topics.DATA_TOPICS}))
 
 
-class BagError(ValueError):
+class BagError(BadFile):
     """A bag that cannot be used: missing, corrupt, foreign or not a run bag (one line)."""
 
 
@@ -103,22 +110,19 @@ def vega_typestore():
     types: dict[str, Any] = {}
     for type_name in _VEGA_TYPES:
         path = msg_dir / f"{type_name.rsplit('/', 1)[1]}.msg"
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise BagError(f"{path}: cannot read message definition ({exc})") from None
+        text = read_text(path, "message definition", BagError)
         types.update(get_types_from_msg(text, type_name))
     store.register(types)
     return store
 
 
 def topic_qos(topic: topics.Topic):
-    """The QoS the publishers of ``topic`` offer (:func:`vega_bus.topics.data_qos` /
-    :func:`~vega_bus.topics.clock_qos`), as a rosbags ``Qos`` for the bag's metadata."""
+    """The QoS the publishers of ``topic`` offer (:func:`vega_bus.qos.data_qos` /
+    :func:`~vega_bus.qos.clock_qos`), as a rosbags ``Qos`` for the bag's metadata."""
     from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
                                     QosReliability, QosTime)
 
-    profile = topics.clock_qos() if topic is topics.CLOCK else topics.data_qos()
+    profile = qos.clock_qos() if topic is topics.CLOCK else qos.data_qos()
     # "infinite" deadline/lifespan/lease as Jazzy's recorder stores what the graph reports
     # for rclpy's default profile (RMW_DURATION_INFINITE = 2^63 - 1 ns)
     infinite = QosTime(9_223_372_036, 854_775_807)
@@ -354,7 +358,7 @@ class RunBag:
 
 
 def _time_ns(t) -> int:
-    return t.sec * 1_000_000_000 + t.nanosec
+    return t.sec * NS_PER_S + t.nanosec
 
 
 # CDR primitive → (numpy dtype, little endian; size [bytes])
@@ -382,7 +386,7 @@ def _cdr_layout(store, root: str, type_name: str, data: bytes, pos: int, prefix:
 
     Entries: ``("time", key, offset)``, ``("base", name, offset, dtype, size)``,
     ``("array", name, offset, dtype, size, n)``, ``("seq", name, length_offset, offset,
-    dtype, size, n)``, ``("string", length_offset, length)``. Returns the end offset.
+    dtype, size, n)``, ``("string", length_offset, length, name)``. Returns the end offset.
     """
     from rosbags.typesys.store import Nodetype
 
@@ -400,7 +404,7 @@ def _cdr_layout(store, root: str, type_name: str, data: bytes, pos: int, prefix:
             if detail[0] == "string":
                 pos = _align(pos, 4)
                 length = int.from_bytes(data[4 + pos:8 + pos], "little")
-                out.append(("string", pos, length))
+                out.append(("string", pos, length, path))
                 pos += 4 + length
                 continue
             dtype, size = _CDR_BASE[detail[0]]
@@ -423,6 +427,31 @@ def _cdr_layout(store, root: str, type_name: str, data: bytes, pos: int, prefix:
             out.append(("seq", path, pos, start, dtype, size, n))
             pos = start + size * n
     return pos
+
+
+def cdr_offsets(type_name: str, data) -> dict[str, int]:
+    """Where the fields of one raw CDR message sit, from the computed layout.
+
+    Parameters
+    ----------
+    type_name
+        Its rosidl type (a type of :func:`vega_typestore`).
+    data
+        The raw message (encapsulation header included), little-endian CDR.
+
+    Returns
+    -------
+    dict
+        Byte offset in ``data`` of each field: ``builtin_interfaces/Time`` fields by column
+        key (``stamp_ns``, ``sample_stamp_ns``: the offset of ``sec``, ``nanosec`` follows),
+        scalars and fixed arrays by name (``seq``, ``pitch_rad``, ``bending_q``), strings and
+        sequences by name at their uint32 length (``header.frame_id``). Strings and sequences
+        shift what follows them, so the offsets hold for messages with the same lengths.
+    """
+    layout: list = []
+    _cdr_layout(vega_typestore(), type_name, type_name, data, 0, "", layout)
+    return {entry[3] if entry[0] == "string" else entry[1]:
+            4 + (entry[1] if entry[0] == "string" else entry[2]) for entry in layout}
 
 
 class _NotFlat(Exception):
@@ -471,7 +500,7 @@ def _fast_columns(store, type_name: str, raw: list) -> tuple[dict, dict]:
         kind = entry[0]
         if kind == "time":
             _, key, off = entry
-            cols[key] = (field(off, "<i4", 4)[:, 0].astype(np.int64) * 1_000_000_000
+            cols[key] = (field(off, "<i4", 4)[:, 0].astype(np.int64) * NS_PER_S
                          + field(off + 4, "<u4", 4)[:, 0])
         elif kind == "base":
             _, name, off, dtype, size = entry
@@ -499,9 +528,9 @@ def _decode_topic(store, path: Path, name: str, type_name: str,
             pass
     try:
         messages = [store.deserialize_cdr(data, type_name) for data in raw]
-    except Exception as exc:
+    except Exception as exc:  # noqa: BLE001 - rosbags' decoder raises many types on bad bytes
         raise BagError(f"bag {path}: topic {name}: undecodable {type_name} message "
-                       f"({_one_line(exc)})") from None
+                       f"({one_line(exc)})") from None
     return _columns_of(store, type_name, messages)
 
 
@@ -553,13 +582,9 @@ def _open_reader(path: Path):
     reader = Reader(path)
     try:
         reader.open()
-    except Exception as exc:  # rosbags raises ReaderError, KeyError, struct/ValueError, …
-        raise BagError(f"bag {path}: unreadable ({_one_line(exc)})") from None
+    except Exception as exc:  # noqa: BLE001 - rosbags raises ReaderError, KeyError, struct/ValueError, …
+        raise BagError(f"bag {path}: unreadable ({one_line(exc)})") from None
     return reader
-
-
-def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split()) or type(exc).__name__
 
 
 def _vega_connections(path: Path, reader) -> tuple[dict, tuple[str, ...]]:
@@ -598,8 +623,8 @@ def _messages(path: Path, reader, connections) -> Iterator[tuple[Any, int, bytes
     """The reader's messages of ``connections``; storage errors as BagError."""
     try:
         yield from reader.messages(connections=connections)
-    except Exception as exc:  # truncated chunks, bad records, decompression errors, …
-        raise BagError(f"bag {path}: corrupt data ({_one_line(exc)})") from None
+    except Exception as exc:  # noqa: BLE001 - truncated chunks, bad records, decompression errors, …
+        raise BagError(f"bag {path}: corrupt data ({one_line(exc)})") from None
 
 
 def iter_raw_messages(path: str | Path, topic_names=None) -> Iterator[tuple[str, int, bytes]]:

@@ -1,14 +1,14 @@
 """The ``recorder`` node: one rosbag2 (MCAP, version 9) per run, raw CDR bytes as received.
 
-Parameters (the run's shared YAML): ``bag_path`` (output directory, must not exist),
-``scenario``, ``seed``, ``controller_table`` (for the metadata and the expected message
-counts), ``participants``, ``barrier_timeout_s``, ``stall_timeout_s``.
+Parameters (the run's shared YAML; :mod:`vega_bus.parameters`): ``bag_path`` (output
+directory, must not exist), ``scenario``, ``seed``, ``controller_table`` (for the metadata and
+the expected message counts), ``participants``, ``barrier_timeout_s``, ``stall_timeout_s``.
 
 * subscribes to every topic of :data:`vega_bus.topics.ALL_TOPICS` with ``raw=True`` and writes
   the bytes unchanged (:class:`vega_bags.bagio.RunBagWriter`): no re-serialisation, so two runs
   of one scenario and seed give byte-identical payloads (except ``compute_time_s``);
 * log time = the message's sim-time stamp (``header.stamp``; ``clock`` of /clock), read
-  from the CDR bytes (:func:`stamp_ns`);
+  from the CDR bytes at the offsets of the computed layout (:class:`RawFields`);
 * checks ``seq`` of every data topic (a gap → exit 1, bag closed and readable);
 * reports its progress on ``/vega/recorded`` (the plant's back-pressure,
   :data:`vega_bus.schedule.RECORDER_WINDOW_FRAMES`); takes its messages in batches
@@ -27,11 +27,15 @@ import struct
 import sys
 import time
 
-from vega_bus import topics
+from vega_core.documents import read_text
+from vega_core.errors import BadInput, one_line
+
+from vega_bus import qos, topics
 from vega_bus.schedule import RECORDER_REPORT_FRAMES
 from vega_bus.shell import EXIT_BAD_INPUT, EXIT_RUN_FAILURE, NodeExit, Shell, run_node
+from vega_bus.timing import NS_PER_S
 
-__all__ = ["stamp_ns", "seq_of", "main"]
+__all__ = ["RawFields", "main"]
 
 # The recorder is off the lockstep's critical path (the plant may run
 # RECORDER_WINDOW_FRAMES ahead of it): it sleeps this long after each wake-up, so that one
@@ -42,10 +46,6 @@ RECORDER_BATCH_S = 0.01
 
 _TIME = struct.Struct("<iI")
 _U32 = struct.Struct("<I")
-# CDR offset of ``seq`` after the header's frame_id: VehicleState and ActuatorState have it
-# right after the header, InsMeasurement and TvcCommand after an 8-byte sample_stamp.
-_SEQ_AFTER_HEADER = {topics.TRUTH.name: 0, topics.ACTUATOR.name: 0, topics.INS.name: 8,
-                     topics.TVC_CMD.name: 8}
 
 
 def _check_le(data) -> None:
@@ -53,20 +53,59 @@ def _check_le(data) -> None:
         raise ValueError("not a little-endian CDR message")
 
 
-def stamp_ns(data) -> int:
-    """Nanoseconds of the first field (``header.stamp`` / ``clock``) of a raw CDR message."""
-    _check_le(data)
-    sec, nsec = _TIME.unpack_from(data, 4)
-    return sec * 1_000_000_000 + nsec
+class RawFields:
+    """The stamp and ``seq`` of one message type's raw CDR bytes, at the offsets of the layout
+    :func:`vega_bags.bagio.cdr_offsets` computes (the one the bag reader uses).
 
+    In every message of the graph the only variable-size part before these fields is
+    ``header.frame_id``, whose length word sits at a fixed place (after the fixed-size
+    stamp): the offsets are computed for the first message of each frame_id length and
+    cached, so a message costs three struct reads (tests/sil/test_sil_nodes.py checks them for
+    every topic and several frame_id lengths).
 
-def seq_of(data, offset_after_header: int) -> int:
-    """``seq`` of a raw vega_msgs message (uint32 after the header and ``offset`` bytes)."""
-    _check_le(data)
-    (length,) = _U32.unpack_from(data, 12)       # frame_id: uint32 length (with NUL), bytes
-    pos = 16 + length - 4                         # CDR positions count from byte 4
-    pos = (pos + 3) // 4 * 4 + offset_after_header
-    return _U32.unpack_from(data, pos + 4)[0]
+    Parameters
+    ----------
+    type_name
+        rosidl type of the topic (``vega_msgs/msg/VehicleState``, ``rosgraph_msgs/msg/Clock``).
+
+    Examples
+    --------
+    >>> stamp_ns, seq = RawFields("vega_msgs/msg/InsMeasurement")(data)   # doctest: +SKIP
+
+    ``seq`` is None for a type without one (``/clock``).
+    """
+
+    def __init__(self, type_name: str):
+        self.type_name = type_name
+        self._length_at: int | None = None   # offset of frame_id's length word, once known
+        self._known: dict[int | None, tuple[int, int | None]] = {}
+
+    def _learn(self, data) -> tuple[int, int | None]:
+        from vega_bags import bagio
+
+        at = bagio.cdr_offsets(self.type_name, data)
+        key = None
+        if "header.frame_id" in at:
+            self._length_at = at["header.frame_id"]
+            key = _U32.unpack_from(data, self._length_at)[0]
+        self._known[key] = found = (at["stamp_ns"], at.get("seq"))
+        return found
+
+    def __call__(self, data) -> tuple[int, int | None]:
+        """(stamp [ns], seq or None) of one raw message.
+
+        Raises
+        ------
+        ValueError
+            If ``data`` is not little-endian CDR.
+        """
+        _check_le(data)
+        key = None if self._length_at is None else _U32.unpack_from(data, self._length_at)[0]
+        found = self._known.get(key)
+        stamp_at, seq_at = found if found is not None else self._learn(data)
+        sec, nsec = _TIME.unpack_from(data, stamp_at)
+        seq = None if seq_at is None else _U32.unpack_from(data, seq_at)[0]
+        return sec * NS_PER_S + nsec, seq
 
 
 def _recorder(shell: Shell) -> None:
@@ -78,12 +117,12 @@ def _recorder(shell: Shell) -> None:
     from vega_bags import bagio
 
     node = shell.node
-    bag_path = shell.param("bag_path", "", lambda v: None if v else "must be set")
-    table = shell.param("controller_table", "")
+    bag_path = shell.param("bag_path")
+    table = shell.param("controller_table")
     try:
         scenario, seed, info = load_run(*shell.run_params())
-    except (ValueError, OSError) as exc:
-        raise NodeExit(EXIT_BAD_INPUT, " ".join(str(exc).split())) from None
+    except (BadInput, OSError) as exc:
+        raise NodeExit(EXIT_BAD_INPUT, one_line(exc)) from None
     participants, barrier_timeout = shell.common_params()
     if Path(bag_path).exists():
         raise NodeExit(EXIT_BAD_INPUT, f"bag {bag_path}: exists already, not overwriting")
@@ -93,24 +132,24 @@ def _recorder(shell: Shell) -> None:
             table = default_table_path()
         from vega_sim.scenario import scenario_file
         source = scenario_file(shell.node.get_parameter("scenario").value)
-        meta = bagio.run_metadata(scenario.name, source.read_text(encoding="utf-8"), seed, table,
+        meta = bagio.run_metadata(scenario.name, read_text(source, "scenario"), seed, table,
                                   extra={"vega.plant": scenario.plant,
                                          "vega.t_start_s": repr(scenario.t_start_s),
                                          "vega.t_end_s": repr(scenario.t_end_s)})
         writer = bagio.RunBagWriter(bag_path, meta).open()
-    except (ValueError, OSError) as exc:
-        raise NodeExit(EXIT_BAD_INPUT, " ".join(str(exc).split())) from None
+    except (BadInput, OSError) as exc:
+        raise NodeExit(EXIT_BAD_INPUT, one_line(exc)) from None
 
     expected = info.expected_counts()
     counts = {name: 0 for name in expected}
-    progress = node.create_publisher(UInt32, topics.RECORDED.name, topics.data_qos())
+    progress = node.create_publisher(UInt32, topics.RECORDED.name, qos.data_qos())
     try:
         for topic in topics.ALL_TOPICS:
-            qos = topics.clock_qos() if topic is topics.CLOCK else topics.data_qos()
-            callback = _writer_callback(writer, topic.name, counts,
+            profile = qos.clock_qos() if topic is topics.CLOCK else qos.data_qos()
+            callback = _writer_callback(writer, topic.name, topic.type_name, counts,
                                         progress if topic is topics.TRUTH else None)
             node.create_subscription(topics.message_class(topic.type_name), topic.name,
-                                     shell.guard(callback), qos, raw=True)
+                                     shell.guard(callback), profile, raw=True)
         shell.barrier(participants, [progress], barrier_timeout)
         shell.batch_s = RECORDER_BATCH_S
         shell.wait_until(lambda: counts == expected,
@@ -128,21 +167,21 @@ def _recorder(shell: Shell) -> None:
         shell.spin_once(0.05)
 
 
-def _writer_callback(writer, name: str, counts: dict, progress=None):
-    """Callback writing the raw messages of topic ``name``; with ``progress`` (the truth
-    topic), it reports the count on /vega/recorded every RECORDER_REPORT_FRAMES messages."""
+def _writer_callback(writer, name: str, type_name: str, counts: dict, progress=None):
+    """Callback writing the raw messages of topic ``name`` (type ``type_name``); with
+    ``progress`` (the truth topic), it reports the count on /vega/recorded every
+    RECORDER_REPORT_FRAMES messages."""
     from std_msgs.msg import UInt32
 
-    offset = _SEQ_AFTER_HEADER.get(name)
+    fields = RawFields(type_name)
     report = UInt32()
 
     def on_message(data):
-        if offset is not None:
-            seq = seq_of(data, offset)
-            if seq != counts[name]:
-                raise NodeExit(EXIT_RUN_FAILURE, f"sequence gap on {name}: expected seq "
-                                                 f"{counts[name]}, got {seq}")
-        writer.write(name, stamp_ns(data), data)
+        stamp, seq = fields(data)
+        if seq is not None and seq != counts[name]:
+            raise NodeExit(EXIT_RUN_FAILURE, f"sequence gap on {name}: expected seq "
+                                             f"{counts[name]}, got {seq}")
+        writer.write(name, stamp, data)
         counts[name] += 1
         if progress is not None and counts[name] % RECORDER_REPORT_FRAMES == 0:
             report.data = counts[name]

@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 import shutil
 import struct
+import subprocess
 import tempfile
 import time
 from contextlib import contextmanager
@@ -38,13 +39,15 @@ from typing import Callable
 
 import numpy as np
 
-from vega_bus import topics
+from vega_core.errors import BadArgument, BadInput
+
+from vega_bus import qos, topics
+from vega_bus.timing import NS_PER_MS, NS_PER_S
 
 from vega_bags import bagio
 
 __all__ = ["PlayResult", "play", "ControllerCheck", "first_difference", "check_controller"]
 
-_NS_PER_MS = 1_000_000
 CHECKER_NAME = "recorder"
 """Node name of the controller checker (it records the controller's commands)."""
 STALL_TIMEOUT_S = 20.0
@@ -97,7 +100,7 @@ def _clock_bytes(t_ns: int) -> bytes:
     store = bagio.vega_typestore()
     Clock = store.types[topics.CLOCK.type_name]
     Time = store.types["builtin_interfaces/msg/Time"]
-    sec, nsec = divmod(int(t_ns), 1_000_000_000)
+    sec, nsec = divmod(int(t_ns), NS_PER_S)
     return bytes(store.serialize_cdr(Clock(clock=Time(sec=sec, nanosec=nsec)),
                                      topics.CLOCK.type_name))
 
@@ -124,11 +127,11 @@ def play(path: str | Path, rate: float = 1.0, *, wait_subscribers_s: float = 0.0
     ------
     BagError
         Missing, corrupt or foreign bag.
-    ValueError
+    BadArgument
         Negative or non-finite rate.
     """
     if not (math.isfinite(rate) and rate >= 0.0):
-        raise ValueError(f"--rate {rate!r}: must be a finite number >= 0")
+        raise BadArgument(f"--rate {rate!r}: must be a finite number >= 0")
     say = progress or (lambda line: None)
     bag = bagio.read_run_bag(path)  # validates the whole bag before anything is published
     names = [t.name for t in topics.ALL_TOPICS if bag.has(t.name) and len(bag[t.name])]
@@ -137,9 +140,9 @@ def play(path: str | Path, rate: float = 1.0, *, wait_subscribers_s: float = 0.0
         pubs = {}
         for t in topics.ALL_TOPICS:
             if t.name in names or (t is topics.CLOCK and synth_clock):
-                qos = topics.clock_qos() if t is topics.CLOCK else topics.data_qos()
+                profile = qos.clock_qos() if t is topics.CLOCK else qos.data_qos()
                 pubs[t.name] = node.create_publisher(topics.message_class(t.type_name),
-                                                     t.name, qos)
+                                                     t.name, profile)
         if wait_subscribers_s > 0:
             deadline = time.monotonic() + wait_subscribers_s
             while any(p.get_subscription_count() == 0 for p in pubs.values()):
@@ -275,12 +278,12 @@ def _table_path(bag: bagio.RunBag, table: str | Path | None) -> tuple[Path, list
     if table is None:
         recorded = bag.metadata.get(bagio.META_CONTROLLER_TABLE)
         if not recorded:
-            raise ValueError(f"bag {bag.path}: no controller table in the metadata; pass "
-                             f"--table FILE")
+            raise BadInput(f"bag {bag.path}: no controller table in the metadata; pass "
+                           f"--table FILE")
         path = Path(recorded)
     else:
         path = Path(table)
-    load_controller_table(path)  # a bad table: one line (ValueError/OSError), exit 2
+    load_controller_table(path)  # a bad table: one line (BadInput), exit 2
     sha = bag.metadata.get(bagio.META_CONTROLLER_TABLE_SHA256)
     if sha and bagio.file_sha256(path) != sha:
         notes.append(f"{path} differs from the table the run was recorded with "
@@ -323,7 +326,7 @@ class _ControllerProcess:
     def wait(self, timeout_s: float) -> int | None:
         try:
             return self.process.popen.wait(timeout_s)
-        except Exception:  # subprocess.TimeoutExpired
+        except subprocess.TimeoutExpired:
             return None
 
     def stop(self) -> None:
@@ -401,8 +404,9 @@ def check_controller(path: str | Path, table: str | Path | None = None, *,
 
     Raises
     ------
-    BagError, ValueError, OSError
-        Bad bag, table or metadata, or the controller rejected its input (exit status 2).
+    BadInput, OSError
+        Bad bag (:class:`~vega_bags.bagio.BagError`), table or metadata, or the controller
+        rejected its input (exit status 2).
     """
     from std_msgs.msg import String
 
@@ -416,7 +420,7 @@ def check_controller(path: str | Path, table: str | Path | None = None, *,
     table_path, notes = _table_path(bag, table)
     ins_raw = [d for _, _, d in bagio.iter_raw_messages(path, {topics.INS.name})]
     recorded = [d for _, _, d in bagio.iter_raw_messages(path, {topics.TVC_CMD.name})]
-    samples_ms = (bag[topics.INS.name]["sample_stamp_ns"] // _NS_PER_MS
+    samples_ms = (bag[topics.INS.name]["sample_stamp_ns"] // NS_PER_MS
                   if bag.has(topics.INS.name) else np.zeros(0, np.int64))
     if len(ins_raw) == 0:
         raise bagio.BagError(f"bag {bag.path}: no {topics.INS.name} messages to replay")
@@ -427,12 +431,12 @@ def check_controller(path: str | Path, table: str | Path | None = None, *,
         barrier_timeout_s=float(barrier_timeout_s))
     received: list[bytes] = []
     with _ros_node(CHECKER_NAME) as (node, executor):
-        run_pub = node.create_publisher(String, topics.RUN.name, topics.control_qos())
+        run_pub = node.create_publisher(String, topics.RUN.name, qos.control_qos())
         ins_pub = node.create_publisher(topics.message_class(topics.INS.type_name),
-                                        topics.INS.name, topics.data_qos())
+                                        topics.INS.name, qos.data_qos())
         cmd_sub = node.create_subscription(topics.message_class(topics.TVC_CMD.type_name),
                                            topics.TVC_CMD.name, received.append,
-                                           topics.data_qos(), raw=True)
+                                           qos.data_qos(), raw=True)
         run_pub.publish(String(data=info.to_json()))
         # matched both ways before the run starts: the controller hears the measurements,
         # and this node hears the controller's commands from the first one
@@ -448,7 +452,7 @@ def check_controller(path: str | Path, table: str | Path | None = None, *,
             controller.stop()
             shutil.rmtree(workdir, ignore_errors=True)
     if failure is not None and failure.code == 2:
-        raise ValueError(str(failure))
+        raise BadInput(str(failure))
     compared, diff = first_difference(recorded, received)
     if failure is not None:
         diff = f"{failure}; {diff}" if diff else str(failure)

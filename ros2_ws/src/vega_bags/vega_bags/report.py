@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from vega_bus.wire import STATUS_NAMES
+
 from vega_bags import bagio
 from vega_bags.bagcheck import BagCheck, check_bag
 from vega_sim.requirements import RequirementSpec
@@ -37,8 +39,6 @@ PLOTS = {
     "status.png": "controller status flags (TvcCommand.status)",
 }
 """Plot file → what it shows."""
-
-_STATUS_NAMES = ("OK", "HOLD_LAST", "VELOCITY_CLAMPED", "SAFE_ZERO", "LIMITED")
 
 
 def _row(*cells) -> str:
@@ -181,8 +181,8 @@ def _plot(check: BagCheck, spec: RequirementSpec | None, out: Path) -> list[Path
     fig, ax = plt.subplots(figsize=(8, 3.5))
     if tc.size:
         ax.step(tc, r.cmd_status, where="post", label="TvcCommand.status")
-    ax.set_yticks(range(len(_STATUS_NAMES)), _STATUS_NAMES)
-    ax.set_ylim(-0.5, len(_STATUS_NAMES) - 0.5)
+    ax.set_yticks(list(STATUS_NAMES), list(STATUS_NAMES.values()))
+    ax.set_ylim(min(STATUS_NAMES) - 0.5, max(STATUS_NAMES) + 0.5)
     figs["status.png"] = fig
 
     paths = []

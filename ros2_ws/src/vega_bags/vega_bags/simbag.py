@@ -5,9 +5,11 @@ messages the SIL nodes publish for the same run — ``VehicleState`` at every fr
 t_start … t_end and ``/clock`` at those of :func:`vega_bus.schedule.clock_frames`,
 ``InsMeasurement`` per frame, ``TvcCommand`` per controller step,
 ``ActuatorState`` per frame with its physics-rate samples — as (topic, log time [ns], rclpy
-message) in log-time order. Tests may alter them (a NaN, a dropped message, a stalled stamp)
-before :func:`write_messages` serialises them with ``rclpy.serialization.serialize_message``
-into a run bag through :class:`vega_bags.bagio.RunBagWriter`.
+message) in log-time order, each filled from its record (:mod:`vega_bus.records`) by
+:func:`vega_bus.wire.to_msg`, as the nodes fill theirs. Tests may alter them (a NaN, a dropped
+message, a stalled stamp) before :func:`write_messages` serialises them with
+``rclpy.serialization.serialize_message`` into a run bag through
+:class:`vega_bags.bagio.RunBagWriter`.
 
 Used by the bag tests and ``bench/bench_check.py`` (bags without starting the SIL), and as
 the reference for comparing a SIL bag with the in-process run. The controller's wall-clock
@@ -22,16 +24,16 @@ from typing import Any, Iterable, Mapping
 
 import yaml
 
-from vega_bus import topics
+from vega_bus import topics, wire
+from vega_bus.records import ActuatorOut, CommandOut, InsOut, TruthOut
 from vega_bus.schedule import clock_frames
-from vega_bus.timing import ms_to_stamp
+from vega_bus.timing import NS_PER_MS, ms_to_stamp
 
 from vega_bags import bagio
 
 __all__ = ["scenario_yaml", "simulation_messages", "write_messages", "write_simulation_bag"]
 
 _ORDER = {t.name: i for i, t in enumerate(topics.ALL_TOPICS)}
-_NS_PER_MS = 1_000_000
 
 
 def scenario_yaml(scenario) -> str:
@@ -57,16 +59,6 @@ def _stamp(msg_time, t_ms: int) -> None:
     msg_time.sec, msg_time.nanosec = ms_to_stamp(int(t_ms))
 
 
-def _new(cls, t_ms: int, seq: int, sample_ms=None):
-    """A message of ``cls`` with header stamp, seq and (if given) sample_stamp set."""
-    m = cls()
-    _stamp(m.header.stamp, t_ms)
-    m.seq = seq
-    if sample_ms is not None:
-        _stamp(m.sample_stamp, sample_ms)
-    return m
-
-
 def simulation_messages(result, *, compute_time_s: float = 5e-5
                         ) -> list[tuple[str, int, Any]]:
     """The messages of an in-process run, as the SIL publishes them.
@@ -90,48 +82,44 @@ def simulation_messages(result, *, compute_time_s: float = 5e-5
     r = result
     ticks = set(clock_frames(len(r.t_ms) - 1))
     for i, t_ms in enumerate(r.t_ms.tolist()):
-        m = _new(VehicleState, t_ms, i)
-        m.pitch_rad, m.pitch_rate_radps = float(r.theta_rad[i]), float(r.theta_dot_radps[i])
-        m.drift_m, m.drift_rate_mps = float(r.z_m[i]), float(r.z_dot_mps[i])
-        m.aoa_rad, m.q_alpha_pa_rad = float(r.alpha_rad[i]), float(r.q_alpha_pa_rad[i])
-        m.dynamic_pressure_pa, m.mach = float(r.q_pa[i]), float(r.mach[i])
-        m.velocity_mps, m.altitude_m = float(r.v_mps[i]), float(r.h_m[i])
-        m.wind_mps = float(r.wind_mps[i])
-        m.bending_q = r.bending_q[i].tolist()
-        m.bending_qdot = r.bending_qdot[i].tolist()
-        out.append((topics.TRUTH.name, t_ms * _NS_PER_MS, m))
+        m = wire.to_msg(TruthOut(
+            stamp_ms=t_ms, seq=i, pitch_rad=float(r.theta_rad[i]),
+            pitch_rate_radps=float(r.theta_dot_radps[i]), drift_m=float(r.z_m[i]),
+            drift_rate_mps=float(r.z_dot_mps[i]), aoa_rad=float(r.alpha_rad[i]),
+            q_alpha_pa_rad=float(r.q_alpha_pa_rad[i]), dynamic_pressure_pa=float(r.q_pa[i]),
+            mach=float(r.mach[i]), velocity_mps=float(r.v_mps[i]), altitude_m=float(r.h_m[i]),
+            wind_mps=float(r.wind_mps[i]), bending_q=tuple(r.bending_q[i].tolist()),
+            bending_qdot=tuple(r.bending_qdot[i].tolist())), VehicleState())
+        out.append((topics.TRUTH.name, t_ms * NS_PER_MS, m))
         if i in ticks:
             c = Clock()
             _stamp(c.clock, t_ms)
-            out.append((topics.CLOCK.name, t_ms * _NS_PER_MS, c))
+            out.append((topics.CLOCK.name, t_ms * NS_PER_MS, c))
     for i, t_ms in enumerate(r.ins_stamp_ms.tolist()):
-        m = _new(InsMeasurement, t_ms, i, r.ins_sample_ms[i])
-        m.pitch_rad, m.pitch_rate_radps = float(r.ins_theta_rad[i]), \
-            float(r.ins_theta_dot_radps[i])
-        m.drift_m, m.drift_rate_mps = float(r.ins_z_m[i]), float(r.ins_z_dot_mps[i])
-        m.velocity_mps, m.valid = float(r.ins_v_mps[i]), True
-        out.append((topics.INS.name, t_ms * _NS_PER_MS, m))
+        m = wire.to_msg(InsOut(
+            stamp_ms=t_ms, sample_ms=int(r.ins_sample_ms[i]), seq=i,
+            pitch_rad=float(r.ins_theta_rad[i]), pitch_rate_radps=float(r.ins_theta_dot_radps[i]),
+            drift_m=float(r.ins_z_m[i]), drift_rate_mps=float(r.ins_z_dot_mps[i]),
+            velocity_mps=float(r.ins_v_mps[i]), valid=True), InsMeasurement())
+        out.append((topics.INS.name, t_ms * NS_PER_MS, m))
     for i, t_ms in enumerate(r.cmd_stamp_ms.tolist()):
-        m = _new(TvcCommand, t_ms, i, r.cmd_sample_ms[i])
-        m.deflection_cmd_rad = float(r.cmd_rad[i])
-        m.scheduling_velocity_mps = float(r.cmd_v_mps[i])
-        m.status = int(r.cmd_status[i])
+        m = wire.to_msg(CommandOut(
+            stamp_ms=t_ms, sample_ms=int(r.cmd_sample_ms[i]), seq=i,
+            deflection_cmd_rad=float(r.cmd_rad[i]), scheduling_velocity_mps=float(r.cmd_v_mps[i]),
+            status=int(r.cmd_status[i])), TvcCommand())
         m.compute_time_s = float(compute_time_s)
-        out.append((topics.TVC_CMD.name, t_ms * _NS_PER_MS, m))
+        out.append((topics.TVC_CMD.name, t_ms * NS_PER_MS, m))
     dt_ms = int(r.act_t_ms[1] - r.act_t_ms[0])
     per_frame = int(r.ins_stamp_ms.size and (r.act_t_ms.size - 1) // r.ins_stamp_ms.size)
     for f in range(per_frame and (r.act_t_ms.size - 1) // per_frame):
         lo, hi = 1 + f * per_frame, 1 + (f + 1) * per_frame
         t_ms = int(r.act_t_ms[hi - 1])
-        m = _new(ActuatorState, t_ms, f)
-        m.deflection_samples_rad = r.beta_rad[lo:hi].tolist()
-        m.rate_samples_radps = r.beta_dot_radps[lo:hi].tolist()
-        m.accel_samples_radps2 = r.beta_ddot_radps2[lo:hi].tolist()
-        m.deflection_rad = float(r.beta_rad[hi - 1])
-        m.rate_radps = float(r.beta_dot_radps[hi - 1])
-        m.accel_radps2 = float(r.beta_ddot_radps2[hi - 1])
-        m.sample_period_s = dt_ms / 1000.0
-        out.append((topics.ACTUATOR.name, t_ms * _NS_PER_MS, m))
+        m = wire.to_msg(ActuatorOut(
+            stamp_ms=t_ms, seq=f, deflection_samples_rad=tuple(r.beta_rad[lo:hi].tolist()),
+            rate_samples_radps=tuple(r.beta_dot_radps[lo:hi].tolist()),
+            accel_samples_radps2=tuple(r.beta_ddot_radps2[lo:hi].tolist()),
+            command_samples_rad=(), sample_period_s=dt_ms / 1000.0), ActuatorState())
+        out.append((topics.ACTUATOR.name, t_ms * NS_PER_MS, m))
     out.sort(key=lambda item: (item[1], _ORDER[item[0]]))
     return out
 

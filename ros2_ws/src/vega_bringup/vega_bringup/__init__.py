@@ -1,1 +1,3 @@
-"""Bring-up of SIL runs: run planning, the node supervisor (orchestrator), the ROS environment rules, executable lookup."""
+"""Bring-up of SIL runs: run planning, the node supervisor (orchestrator), the ROS environment
+rules, executable lookup.
+"""

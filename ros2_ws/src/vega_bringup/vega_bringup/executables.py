@@ -7,6 +7,8 @@ the layout a full ROS 2 install expects.
 
 import os
 
+from vega_core.errors import BadArgument
+
 __all__ = ["find_executable"]
 
 
@@ -27,7 +29,7 @@ def find_executable(package, executable):
 
     Raises
     ------
-    ValueError
+    BadArgument
         One line: the package is not in the ament index, or has no such executable (the
         message lists the ones it has).
     """
@@ -36,7 +38,7 @@ def find_executable(package, executable):
     try:
         prefix = get_package_prefix(package)
     except PackageNotFoundError:
-        raise ValueError(
+        raise BadArgument(
             f"package {package!r} not found in the ament index "
             f"(AMENT_PREFIX_PATH={os.environ.get('AMENT_PREFIX_PATH', '')}); "
             f"did 'make setup' build it?") from None
@@ -50,7 +52,7 @@ def find_executable(package, executable):
                 and os.path.isfile(os.path.join(directory, name)))
         except OSError:
             available = []
-        raise ValueError(
+        raise BadArgument(
             f"no executable {executable!r} in package {package!r} "
             f"(available: {', '.join(available) or 'none'})")
     return path

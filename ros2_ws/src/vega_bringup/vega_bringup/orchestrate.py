@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterable, Mapping, Sequence
 
-from vega_bus import barrier, topics
+from vega_bus import barrier, parameters, qos, topics
 
 __all__ = ["NodeSpec", "PARTICIPANTS", "DEFAULT_BARRIER_TIMEOUT_S", "TERM_GRACE_S",
            "FINISH_GRACE_S", "RunParameters", "RunLayout", "params_yaml", "default_run_id",
@@ -74,9 +74,11 @@ PARTICIPANTS = tuple(NodeSpec(_PACKAGES[name], name) for name in barrier.PARTICI
 works: the start barrier waits)."""
 
 DEFAULT_BARRIER_TIMEOUT_S = 60.0
-"""Start-barrier timeout [s]: long enough for five Python processes to import and set up on
-a loaded 2-core machine (2–3 s measured, up to 20 s under heavy load) plus a slow DDS discovery (up to ≈ 3 s,
-ENVIRONMENT.md); a node that is missing after it fails the run and is named."""
+"""Start-barrier timeout a run writes for its nodes [s] (a node started without it waits
+:data:`vega_bus.parameters.BARRIER_TIMEOUT_S`'s shorter default): long enough for five Python
+processes to import and set up on a loaded 2-core machine (2–3 s measured, up to 20 s under
+heavy load) plus a slow DDS discovery (up to ≈ 3 s, docs/ENVIRONMENT_SETUP.md); a node that is
+missing after it fails the run and is named."""
 
 TERM_GRACE_S = 5.0
 """Time a node gets to exit after SIGTERM before it is killed (SIGKILL) [s]."""
@@ -94,6 +96,10 @@ the nodes normally report the timeout first (exit 1) and the orchestrator names 
 @dataclass(frozen=True)
 class RunParameters:
     """The parameters every node of a run reads (one ``/**`` section, see :func:`params_yaml`).
+
+    Every field is a node parameter of :data:`vega_bus.parameters.PARAMETERS`, which holds
+    its meaning, unit and domain (the nodes declare them from there, and ``ros2 param
+    describe`` shows them); tests/bus/test_parameters.py checks that the two agree.
 
     Attributes
     ----------
@@ -158,17 +164,14 @@ def params_yaml(params: RunParameters) -> str:
     lines = ["# Parameters of every node of one VEGA TVC SIL run (written by `vega sil run`).",
              "/**:", "  ros__parameters:"]
     for name in RunParameters.__dataclass_fields__:
-        value = getattr(params, name)
-        if name == "participants":
-            value = list(value)
-        elif name == "barrier_timeout_s":
-            value = float(value)
+        value = parameters.spec(name).coerce(getattr(params, name))   # in the node's type
         lines.append(f"    {name}: {_yaml_scalar(value)}")
     return "\n".join(lines) + "\n"
 
 
 def default_run_id(scenario_name: str, seed: int, now: float | None = None) -> str:
-    """Run directory name: ``<UTC time>-<scenario>-seed<N>`` (e.g. ``20261121T083000Z-nominal-seed1``).
+    """Run directory name: ``<UTC time>-<scenario>-seed<N>``
+    (e.g. ``20261121T083000Z-nominal-seed1``).
 
     Parameters
     ----------
@@ -191,22 +194,27 @@ class RunLayout:
 
     @property
     def params_file(self) -> Path:
+        """The parameters file every node reads."""
         return self.run_dir / "params.yaml"
 
     @property
     def commands_file(self) -> Path:
+        """The node commands, one per line."""
         return self.run_dir / "commands.sh"
 
     @property
     def log_dir(self) -> Path:
+        """One log file per node."""
         return self.run_dir / "logs"
 
     @property
     def bag_dir(self) -> Path:
+        """The run's rosbag2 directory."""
         return self.run_dir / "bag"
 
     @property
     def report_dir(self) -> Path:
+        """The report written from the bag."""
         return self.run_dir / "report"
 
     def log_file(self, spec: NodeSpec) -> Path:
@@ -330,6 +338,7 @@ class NodeProcess:
 
     @property
     def name(self) -> str:
+        """Node name (= executable name)."""
         return self.spec.name
 
     def reap(self, block: bool = False):
@@ -378,6 +387,7 @@ class RunOutcome:
 
     @property
     def ok(self) -> bool:
+        """True if the run ended normally."""
         return self.status == "ok"
 
 
@@ -412,7 +422,7 @@ class ReadyWatcher:
         rclpy.init(context=self._context, signal_handler_options=_no_signal_handlers())
         self._node = rclpy.create_node("vega_sil_run", context=self._context)
         self._node.create_subscription(String, topics.READY.name, self._on_ready,
-                                       topics.control_qos())
+                                       qos.control_qos())
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self._node)
 

@@ -9,10 +9,15 @@ the plan to :class:`vega_bringup.orchestrate.Supervisor`.
 import os
 from pathlib import Path
 
+from vega_core.errors import BadArgument, BadInput
+
+from vega_bus import parameters
+
 __all__ = ["DEFAULT_SCENARIO", "DEFAULT_OUT", "RunPlan", "plan_run", "write_run_files"]
 
-DEFAULT_SCENARIO = "nominal"
-"""Scenario flown when none is given (the whole 0–100 s flight)."""
+DEFAULT_SCENARIO = parameters.SCENARIO.default
+"""Scenario flown when none is given (the whole 0–100 s flight; the nodes' own default,
+:data:`vega_bus.parameters.SCENARIO`)."""
 
 DEFAULT_OUT = "bags"
 """Parent directory of the run directories (relative to the working directory)."""
@@ -37,12 +42,12 @@ class RunPlan:
 
 
 def _checked_seed(seed):
-    """The seed as an int >= 0 (None stays None); ValueError naming ``--seed`` otherwise."""
+    """The seed as an int >= 0 (None stays None); BadArgument naming ``--seed`` otherwise."""
     if seed is None:
         return None
     text = str(seed).strip()
     if isinstance(seed, bool) or not text.isdigit():
-        raise ValueError(f"--seed must be an integer >= 0, got {seed!r}")
+        raise BadArgument(f"--seed must be an integer >= 0, got {seed!r}")
     return int(text)
 
 
@@ -63,8 +68,8 @@ def _resolve_table(path, scenario):
     if path is None:
         table_path = default_table_path()
         if not table_path.is_file():
-            raise ValueError(f"no controller table: {table_path} is not installed (the LPV "
-                             f"synthesis has not exported it); pass --table FILE")
+            raise BadInput(f"no controller table: {table_path} is not installed (the LPV "
+                           f"synthesis has not exported it); pass --table FILE")
     else:
         table_path = Path(path).resolve()
     table = load_controller_table(table_path)
@@ -72,7 +77,7 @@ def _resolve_table(path, scenario):
     return table_path
 
 
-def plan_run(scenario="nominal", seed=None, out=DEFAULT_OUT, realtime=False, table=None,
+def plan_run(scenario=DEFAULT_SCENARIO, seed=None, out=DEFAULT_OUT, realtime=False, table=None,
              run_id=None, domain_id=None, barrier_timeout_s=None):
     """Validate the arguments of a run and build its plan; nothing is written or started.
 
@@ -93,11 +98,12 @@ def plan_run(scenario="nominal", seed=None, out=DEFAULT_OUT, realtime=False, tab
     domain_id : int, optional
         The run's ROS_DOMAIN_ID (default: this process's).
     barrier_timeout_s : float, optional
-        Start-barrier timeout (default: :data:`~vega_bringup.orchestrate.DEFAULT_BARRIER_TIMEOUT_S`).
+        Start-barrier timeout
+        (default: :data:`~vega_bringup.orchestrate.DEFAULT_BARRIER_TIMEOUT_S`).
 
     Raises
     ------
-    ValueError
+    BadInput
         One line naming the bad argument (scenario, seed, table, output, executable).
     """
     from vega_bringup import orchestrate
@@ -109,17 +115,18 @@ def plan_run(scenario="nominal", seed=None, out=DEFAULT_OUT, realtime=False, tab
     table_path = _resolve_table(table, loaded)
     out = Path(out)
     if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out}: exists and is not a directory")
+        raise BadArgument(f"--out {out}: exists and is not a directory")
     run_id = run_id if run_id is not None else orchestrate.default_run_id(loaded.name,
                                                                           effective_seed)
     if not run_id or "/" in run_id or run_id in (".", ".."):
-        raise ValueError(f"--run-id {run_id!r}: must be a plain directory name")
+        raise BadArgument(f"--run-id {run_id!r}: must be a plain directory name")
     layout = orchestrate.RunLayout((out / run_id).resolve())
     if layout.run_dir.exists():
-        raise ValueError(f"output {layout.run_dir} already exists (runs never overwrite one; "
-                         f"choose another --out or --run-id)")
+        raise BadArgument(f"output {layout.run_dir} already exists (runs never overwrite one; "
+                          f"choose another --out or --run-id)")
     params = orchestrate.RunParameters(
-        scenario=scenario_param, seed=-1 if seed is None else seed, realtime=bool(realtime),
+        scenario=scenario_param, seed=parameters.SEED_FROM_SCENARIO if seed is None else seed,
+        realtime=bool(realtime),
         controller_table=str(table_path), bag_path=str(layout.bag_dir),
         barrier_timeout_s=(orchestrate.DEFAULT_BARRIER_TIMEOUT_S if barrier_timeout_s is None
                            else float(barrier_timeout_s)))
@@ -140,7 +147,7 @@ def write_run_files(plan):
     try:
         plan.layout.run_dir.mkdir()
     except FileExistsError:
-        raise ValueError(f"output {plan.layout.run_dir} already exists") from None
+        raise BadArgument(f"output {plan.layout.run_dir} already exists") from None
     plan.layout.params_file.write_text(orchestrate.params_yaml(plan.params), encoding="utf-8")
     plan.layout.commands_file.write_text(
         "# The nodes of this run, one per terminal (written by `vega sil run`).\n"

@@ -1,6 +1,6 @@
 """Process environment of every ROS 2 process the project starts.
 
-One source of truth for the environment rules of ``../shared/design/ENVIRONMENT.md``:
+One source of truth for the environment rules of ``docs/ENVIRONMENT_SETUP.md``:
 
 * discovery never leaves the machine: ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, with
   ``ROS_LOCALHOST_ONLY`` (deprecated in Jazzy) and ``ROS_STATIC_PEERS`` (extra peers, possibly
@@ -23,6 +23,8 @@ import os
 import sys
 import tempfile
 from pathlib import Path
+
+from vega_core.errors import BadArgument
 
 from vega_bus import network
 
@@ -52,7 +54,7 @@ _BOOTSTRAP_GUARD = "_ROS_WHEELS_BOOTSTRAP_COMPLETE"
 _REMOVED_VARIABLES = network.REMOVED_VARIABLES
 
 
-class DomainIdError(ValueError):
+class DomainIdError(BadArgument):
     """A ROS_DOMAIN_ID given by the caller is not an integer in 1..101."""
 
 

@@ -1,9 +1,13 @@
 """The contract of the VEGA TVC node graph, shared by vega_plant, vega_gnc and vega_sil.
 
 Modules: :mod:`~vega_bus.topics` (names, types, QoS), :mod:`~vega_bus.timing` (loop timing,
-ms stamps), :mod:`~vega_bus.records` (the INS measurement record), :mod:`~vega_bus.schedule` (the lockstep schedule, :class:`RunInfo`, expected
-message counts), :mod:`~vega_bus.barrier` (start barrier), :mod:`~vega_bus.shell` (the ROS
-shell every node shares: parameters, waiting, exit codes, signals).
+ms stamps, the time units ``NS_PER_MS``/``NS_PER_S``), :mod:`~vega_bus.records` (one plain
+record per data message: ``TruthOut``, ``InsOut``, ``CommandOut``, ``ActuatorOut``),
+:mod:`~vega_bus.wire` (records ↔ messages by field name; the ``TvcCommand`` status names from
+the message), :mod:`~vega_bus.parameters` (the node parameters: type, default, unit, meaning,
+domain), :mod:`~vega_bus.schedule` (the lockstep schedule, :class:`RunInfo`, expected message
+counts), :mod:`~vega_bus.barrier` (start barrier), :mod:`~vega_bus.shell` (the ROS shell
+every node shares: parameters, waiting, exit codes, signals).
 
 SIL node contract (as implemented)
 ----------------------------------
@@ -12,12 +16,20 @@ Executables (``ros2 run`` layout): ``vega_plant plant``, ``vega_plant ins_sensor
 executable name; started as ``<prefix>/lib/PKG/EXE --ros-args --params-file FILE``.
 
 Parameters (one YAML, ``/**: ros__parameters:``; each node declares only what it uses and
-ignores the rest; a bad value → one line, exit 2): ``scenario`` (string, default "nominal"),
+ignores the rest; a bad value → one line, exit 2), declared once in
+:data:`vega_bus.parameters.PARAMETERS` (the nodes declare them from there as read-only with
+descriptors, answered by ``ros2 param describe`` until the start barrier is complete; the run
+planner writes the file from the same names): ``scenario`` (string, default "nominal"),
 ``seed`` (int, −1 = the scenario's), ``realtime`` (bool, plant), ``controller_table``
 (string, "" = installed ``share/vega_gnc/config/lpv_controller.npz``; controller and recorder),
 ``bag_path`` (string, recorder, must not exist), ``participants`` (string array, default
-:data:`vega_bus.barrier.PARTICIPANTS`), ``barrier_timeout_s`` (float, 30),
-``stall_timeout_s`` (float, 10: the longest wait for an expected input once flying).
+:data:`vega_bus.barrier.PARTICIPANTS`), ``barrier_timeout_s`` (float, 30 s; ``vega sil run``
+writes :data:`vega_bringup.orchestrate.DEFAULT_BARRIER_TIMEOUT_S`), ``stall_timeout_s``
+(float, 10 s: the longest wait for an expected input once flying).
+
+Messages: every node moves its step's record to and from the message with
+:mod:`vega_bus.wire` (by field name, never by position); the ``TvcCommand`` status values are
+the message's own constants.
 
 Additions to the contract first agreed (other helpers: read this):
 

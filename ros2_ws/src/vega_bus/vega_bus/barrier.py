@@ -29,7 +29,8 @@ from __future__ import annotations
 import time
 from typing import Callable, Iterable, Mapping
 
-from vega_bus.topics import ACTUATOR, CLOCK, INS, READY, RECORDED, RUN, TRUTH, TVC_CMD, control_qos
+from vega_bus.qos import control_qos
+from vega_bus.topics import ACTUATOR, CLOCK, INS, READY, RECORDED, RUN, TRUTH, TVC_CMD
 
 __all__ = ["PARTICIPANTS", "SUBSCRIBERS", "PUBLISHERS", "StartBarrier"]
 

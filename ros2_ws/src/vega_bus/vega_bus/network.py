@@ -1,11 +1,12 @@
 """The network rule every VEGA TVC process obeys: DDS discovery never leaves the machine.
 
-One source of truth for the rule (design/ENVIRONMENT.md): ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is
-LOCALHOST, and the variables that could add peers beyond it (``ROS_STATIC_PEERS``) or override
-it (``ROS_LOCALHOST_ONLY``, deprecated in Jazzy) are removed. ``vega_bringup.rosenv`` applies it to
-every process the tools start; every node applies it to itself before ``rclpy.init``
-(:class:`vega_bus.shell.Shell`), so that a node started directly — ``ros2 run`` on a full ROS
-install, or the executable's path — obeys it too, whatever the shell exported.
+One source of truth for the rule (docs/ENVIRONMENT_SETUP.md, "The network rule"):
+``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST, and the variables that could add peers beyond
+it (``ROS_STATIC_PEERS``) or override it (``ROS_LOCALHOST_ONLY``, deprecated in Jazzy) are
+removed. ``vega_bringup.rosenv`` applies it to every process the tools start; every node
+applies it to itself before ``rclpy.init`` (:class:`vega_bus.shell.Shell`), so that a node
+started directly — ``ros2 run`` on a full ROS install, or the executable's path — obeys it too,
+whatever the shell exported.
 """
 
 from __future__ import annotations

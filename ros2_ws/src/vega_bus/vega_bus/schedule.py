@@ -30,6 +30,8 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass, fields
 
+from vega_core.errors import BadInput
+
 from vega_bus.timing import LoopTiming
 
 __all__ = ["RunInfo", "RECORDER_REPORT_FRAMES", "RECORDER_WINDOW_FRAMES", "CLOCK_EVERY_FRAMES",
@@ -88,18 +90,18 @@ class RunInfo:
 
         Raises
         ------
-        ValueError
+        BadInput
             One line: span not in whole frames, empty, or a total latency shorter than one
             frame (the data-driven lockstep would deadlock).
         """
         f = self.timing.frame_ms
         if self.t_start_ms < 0 or self.t_start_ms % f or self.t_end_ms % f \
                 or self.t_end_ms <= self.t_start_ms:
-            raise ValueError(f"run span [{self.t_start_ms}, {self.t_end_ms}] ms must be whole "
-                             f"{f} ms frames with 0 <= t_start < t_end")
+            raise BadInput(f"run span [{self.t_start_ms}, {self.t_end_ms}] ms must be whole "
+                           f"{f} ms frames with 0 <= t_start < t_end")
         if self.timing.total_latency_ms < f:
-            raise ValueError(f"total loop latency {self.timing.total_latency_ms} ms is shorter "
-                             f"than one frame ({f} ms): the lockstep needs at least one frame")
+            raise BadInput(f"total loop latency {self.timing.total_latency_ms} ms is shorter "
+                           f"than one frame ({f} ms): the lockstep needs at least one frame")
         return self
 
     @property
@@ -150,7 +152,7 @@ class RunInfo:
 
         Raises
         ------
-        ValueError
+        BadInput
             One line if the text is not a valid run description.
         """
         try:
@@ -160,5 +162,5 @@ class RunInfo:
             info = cls(str(d["scenario"]), int(d["seed"]), int(d["t_start_ms"]),
                        int(d["t_end_ms"]), timing)
         except (ValueError, TypeError, KeyError) as exc:
-            raise ValueError(f"malformed run description: {exc}") from None
+            raise BadInput(f"malformed run description: {exc}") from None
         return info.check()

@@ -9,18 +9,26 @@ Exit codes of every node (the contract the orchestrator relies on):
   sequence gap, a stamp out of the lockstep schedule, a lockstep stall (no expected input for
   ``stall_timeout_s``);
 * 2 — bad input: a parameter of the wrong type or value, an unknown scenario, a malformed
-  controller table; reported before the barrier.
+  controller table (:class:`vega_core.errors.BadInput`), or a file that cannot be read or
+  written (``OSError``); reported before the barrier.
 
-Every failure is one line on stderr, ``<node>: <what>``, never a traceback.
+Every failure is one line on stderr, ``<node>: <what>``. An exception of any other type is a
+defect of the node: its traceback, then the one line ``<node>: <type>: <message>``, exit 1.
 
 No executor: :meth:`Shell.spin_once` waits on one rcl wait set holding the node's
 subscriptions and then *drains* every ready subscription (takes until empty), calling its
 callback per message, so one wake-up handles everything that arrived. Measured on the
 5-process 100 s SIL flight (A/B, same loaded machine): the same CPU time and speed as rclpy's
-EventsExecutor driven by ``spin_once`` (ENVIRONMENT.md: its ``spin()`` is broken in the PyPI
-wheels), without depending on rclpy's experimental API. rclpy's own signal handlers are
-replaced by a flag that the wait loops poll, so that a stop never interrupts a bag write
-halfway.
+EventsExecutor driven by ``spin_once`` (docs/ENVIRONMENT_SETUP.md: its ``spin()`` is
+broken in the PyPI wheels), without depending on rclpy's experimental API. rclpy's own
+signal handlers are replaced by a flag that the wait loops poll, so that a stop never
+interrupts a bag write halfway.
+
+Parameters: :meth:`Shell.param` declares a parameter of :mod:`vega_bus.parameters` (default,
+check, read-only descriptor). From the first one until the start barrier is complete, each
+:meth:`Shell.spin_once` also lets rclpy's public executor answer the node's parameter
+services once (no wait), so ``ros2 param describe`` works on a node waiting for its peers;
+in flight nothing but the wait set runs.
 """
 
 from __future__ import annotations
@@ -30,9 +38,12 @@ import signal
 import sys
 import threading
 import time
+import traceback
 from typing import Any, Callable
 
-from vega_bus import network
+from vega_core.errors import BadInput, one_line
+
+from vega_bus import network, parameters
 
 __all__ = ["EXIT_OK", "EXIT_RUN_FAILURE", "EXIT_BAD_INPUT", "NodeExit", "Stopped", "Shell",
            "RecorderProgress", "run_node", "SeqCheck"]
@@ -41,7 +52,7 @@ EXIT_OK = 0
 EXIT_RUN_FAILURE = 1
 EXIT_BAD_INPUT = 2
 
-DEFAULT_STALL_TIMEOUT_S = 10.0
+DEFAULT_STALL_TIMEOUT_S = parameters.STALL_TIMEOUT_S.default
 
 
 class NodeExit(Exception):
@@ -99,6 +110,9 @@ class Shell:
         rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node(name)
         self._rclpy = rclpy_implementation
+        # answers ros2 param requests from the first declared parameter until the barrier
+        self._parameter_services: _ParameterServices | None = None
+        self._barrier_passed = False
         self._wait_set = None
         self._waited: tuple = ()
         self.stall_timeout_s = DEFAULT_STALL_TIMEOUT_S
@@ -139,6 +153,8 @@ class Shell:
                         if got is None:
                             break
                         callback(got[0])
+        if self._parameter_services is not None:
+            self._parameter_services.serve()
         if self.failure is not None:
             raise self.failure
         if self.signal_name is not None:
@@ -199,45 +215,55 @@ class Shell:
         return box
 
     # -------------------------------------------------------------------- parameters
-    def param(self, name: str, default: Any, check: Callable[[Any], str | None] | None = None
-              ) -> Any:
-        """Declare parameter ``name`` (type of ``default``) and return its value.
+    def param(self, name: str) -> Any:
+        """Declare node parameter ``name`` as :data:`vega_bus.parameters.PARAMETERS` defines
+        it (its default, and a read-only descriptor with its description, unit, constraints
+        and range) and return its value.
 
         Raises
         ------
         NodeExit
-            (2) one line if the value has the wrong type or ``check(value)`` returns a
-            problem text.
+            (2) one line if the value has the wrong type (rclpy's reason) or is outside its
+            domain (``parameter '<name>': <problem> (got <value>)``, the table's check).
+        KeyError
+            If ``name`` is not in the table (a programming error).
         """
+        spec = parameters.spec(name)
+        if self._parameter_services is None and not self._barrier_passed:
+            self._parameter_services = _ParameterServices(self.node)
         try:
-            value = self.node.declare_parameter(name, default).value
+            value = self.node.declare_parameter(name, spec.default, _descriptor(spec)).value
         except Exception as exc:  # noqa: BLE001 - rclpy raises several types for bad values
-            raise NodeExit(EXIT_BAD_INPUT, f"parameter '{name}': {_one_line(exc)}") from None
-        problem = check(value) if check is not None else None
+            value = self._out_of_range(spec, exc)
+        problem = spec.problem(value)
         if problem:
             raise NodeExit(EXIT_BAD_INPUT, f"parameter '{name}': {problem} (got {value!r})")
         return value
 
+    def _out_of_range(self, spec: parameters.ParameterSpec, exc: Exception) -> Any:
+        """The value rclpy rejected, if only the descriptor's range rejected it (then the
+        table's check words the one line); else :class:`NodeExit` (2) with rclpy's reason."""
+        if spec.integer_range is not None:
+            try:
+                value = self.node.declare_parameter(
+                    spec.name, spec.default, _descriptor(spec, ranged=False)).value
+            except Exception:  # noqa: BLE001 - the type is wrong too: rclpy's reason below
+                pass
+            else:
+                if spec.problem(value):
+                    return value
+        raise NodeExit(EXIT_BAD_INPUT, f"parameter '{spec.name}': {one_line(exc)}") from None
+
     def run_params(self) -> tuple[str, int]:
         """The ``scenario`` (name or YAML path) and ``seed`` (−1: the scenario's) parameters."""
-        name = self.param("scenario", "nominal",
-                          lambda v: None if v.strip() else "must name a scenario or a YAML file")
-        seed = self.param("seed", -1, lambda v: None if v >= -1 else "must be >= 0, or -1")
-        return name, seed
+        return self.param("scenario"), self.param("seed")
 
     def common_params(self) -> tuple[tuple[str, ...], float]:
         """The ``participants`` and ``barrier_timeout_s`` parameters (and ``stall_timeout_s``,
         which sets :attr:`stall_timeout_s`)."""
-        from vega_bus.barrier import PARTICIPANTS
-
-        participants = tuple(self.param(
-            "participants", list(PARTICIPANTS),
-            lambda v: None if v and all(isinstance(x, str) and x for x in v)
-            else "must be a non-empty list of node names"))
-        timeout = self.param("barrier_timeout_s", 30.0,
-                             lambda v: None if v > 0 else "must be > 0")
-        self.stall_timeout_s = self.param("stall_timeout_s", DEFAULT_STALL_TIMEOUT_S,
-                                          lambda v: None if v > 0 else "must be > 0")
+        participants = tuple(self.param("participants"))
+        timeout = self.param("barrier_timeout_s")
+        self.stall_timeout_s = self.param("stall_timeout_s")
         return participants, timeout
 
     def barrier(self, participants, publishers, timeout_s: float):
@@ -250,7 +276,14 @@ class Shell:
                                [s for s in self.node.subscriptions])
         if not barrier.wait(self.spin_once, timeout_s):
             raise NodeExit(EXIT_RUN_FAILURE, barrier.describe_missing())
+        self._barrier_passed = True
+        self._stop_parameter_services()
         return barrier
+
+    def _stop_parameter_services(self) -> None:
+        if self._parameter_services is not None:
+            self._parameter_services.close()
+            self._parameter_services = None
 
     def recorder_progress(self, participants) -> "RecorderProgress":
         """Subscribe to the recorder's progress (if "recorder" is a participant)."""
@@ -291,6 +324,7 @@ class Shell:
 
         try:
             self._wait_set = None
+            self._stop_parameter_services()
             self.node.destroy_node()
         finally:
             rclpy.try_shutdown()
@@ -306,7 +340,8 @@ class RecorderProgress:
     def __init__(self, shell: Shell, participants):
         from std_msgs.msg import UInt32
 
-        from vega_bus.topics import RECORDED, data_qos
+        from vega_bus.qos import data_qos
+        from vega_bus.topics import RECORDED
 
         self.count = 0
         self._sub = None
@@ -322,8 +357,47 @@ class RecorderProgress:
         return self._sub is not None and self._sub.get_publisher_count() > 0
 
 
-def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split()) or type(exc).__name__
+def _descriptor(spec: parameters.ParameterSpec, ranged: bool = True):
+    """The rclpy ``ParameterDescriptor`` of a table entry (:mod:`vega_bus.parameters`):
+    description with unit and default, additional constraints, integer range, read-only (a
+    node reads its parameters once, at start-up)."""
+    from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
+
+    descriptor = ParameterDescriptor(description=spec.full_description,
+                                     additional_constraints=spec.constraints, read_only=True)
+    if ranged and spec.integer_range is not None:
+        low, high = spec.integer_range
+        descriptor.integer_range = [IntegerRange(from_value=low, to_value=high, step=1)]
+    return descriptor
+
+
+class _ParameterServices:
+    """Answers the node's parameter services (``ros2 param list/get/describe``) from its
+    first declared parameter until the start barrier is complete.
+
+    The shell has no executor (:meth:`Shell.spin_once`), so nothing would answer them: this
+    runs rclpy's public ``SingleThreadedExecutor.spin_once`` (no wait) after each of the
+    shell's own waits, from the first :meth:`Shell.param` until the start barrier is
+    complete — a node started by hand waits there for its peers. It never runs in flight (no
+    cost in the lockstep); a request that arrives then is not answered. A subscription
+    message it takes goes to the same callback as in :meth:`Shell.spin_once`.
+    """
+
+    def __init__(self, node):
+        from rclpy.executors import SingleThreadedExecutor
+
+        self._executor = SingleThreadedExecutor(context=node.context)
+        self._executor.add_node(node)
+        self._node = node
+
+    def serve(self) -> None:
+        """Handle what is ready now (one request or message), without waiting."""
+        self._executor.spin_once(timeout_sec=0.0)
+
+    def close(self) -> None:
+        """Detach the node from the executor and shut the executor down."""
+        self._executor.remove_node(self._node)
+        self._executor.shutdown(timeout_sec=0.0)
 
 
 def run_node(name: str, body: Callable[[Shell], int | None], argv: list[str] | None = None
@@ -332,7 +406,10 @@ def run_node(name: str, body: Callable[[Shell], int | None], argv: list[str] | N
 
     ``body`` returns normally when the run is finished (exit 0). :class:`NodeExit`,
     :class:`Stopped` (SIGINT/SIGTERM: exit 0), KeyboardInterrupt and rclpy's
-    ExternalShutdownException are turned into one line on stderr and the exit code.
+    ExternalShutdownException are turned into one line on stderr and the exit code;
+    :class:`~vega_core.errors.BadInput` and ``OSError`` into one line and exit 2. Any other
+    exception is a defect: its traceback, then one line naming its type, exit 1 (the last
+    line is what the orchestrator reports).
     """
     argv = sys.argv if argv is None else argv
     shell = None
@@ -344,16 +421,20 @@ def run_node(name: str, body: Callable[[Shell], int | None], argv: list[str] | N
     except NodeExit as exc:
         print(f"{name}: {exc.message}", file=sys.stderr)
         code = exc.code
+    except (BadInput, OSError) as exc:
+        print(f"{name}: {one_line(exc)}", file=sys.stderr)
+        code = EXIT_BAD_INPUT
     except (Stopped, KeyboardInterrupt):
         why = shell.signal_name if shell is not None and shell.signal_name else "SIGINT"
         print(f"{name}: stopped by {why}", file=sys.stderr)
         code = EXIT_OK
-    except Exception as exc:  # noqa: BLE001 - ExternalShutdownException and rclpy init errors
+    except Exception as exc:  # noqa: BLE001 - ExternalShutdownException, and defects
         if type(exc).__name__ == "ExternalShutdownException":
             print(f"{name}: stopped (ROS shutdown)", file=sys.stderr)
             code = EXIT_OK
         else:
-            print(f"{name}: {type(exc).__name__}: {_one_line(exc)}", file=sys.stderr)
+            traceback.print_exc()
+            print(f"{name}: {type(exc).__name__}: {one_line(exc)}", file=sys.stderr)
             code = EXIT_RUN_FAILURE
     finally:
         if shell is not None:

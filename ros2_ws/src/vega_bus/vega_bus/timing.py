@@ -25,9 +25,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Mapping
 
-__all__ = ["LoopTiming", "seconds_to_ms", "check_ms", "ms_to_stamp", "stamp_to_ms"]
+from vega_core.errors import BadInput
 
-_NS_PER_MS = 1_000_000
+__all__ = ["NS_PER_MS", "NS_PER_S", "LoopTiming", "seconds_to_ms", "check_ms", "ms_to_stamp",
+           "stamp_to_ms"]
+
+# The time units of the graph, defined once (every package converts with these).
+NS_PER_MS = 1_000_000
+"""Nanoseconds per millisecond (ROS stamps and bag log times are in ns, the loop in ms)."""
+NS_PER_S = 1_000_000_000
+"""Nanoseconds per second (``builtin_interfaces/Time``: sec, nanosec)."""
 
 
 def seconds_to_ms(value_s: float, what: str) -> int:
@@ -35,15 +42,15 @@ def seconds_to_ms(value_s: float, what: str) -> int:
 
     Raises
     ------
-    ValueError
+    BadInput
         If ``value_s`` is not finite or not a whole number of milliseconds (within 1e-6 ms).
     """
     ms = float(value_s) * 1000.0
     if ms != ms or ms in (float("inf"), float("-inf")):
-        raise ValueError(f"{what} must be finite, got {value_s!r}")
+        raise BadInput(f"{what} must be finite, got {value_s!r}")
     whole = round(ms)
     if abs(ms - whole) > 1e-6:
-        raise ValueError(f"{what} = {value_s!r} s is not a whole number of milliseconds")
+        raise BadInput(f"{what} = {value_s!r} s is not a whole number of milliseconds")
     return int(whole)
 
 
@@ -52,18 +59,18 @@ def check_ms(value_s: float, expected_ms: int, what: str) -> None:
 
     Raises
     ------
-    ValueError
+    BadInput
         One line naming ``what`` and both values.
     """
     if abs(value_s * 1000.0 - expected_ms) > 1e-6:
-        raise ValueError(f"{what} {value_s!r} s does not match the loop timing "
-                         f"({expected_ms} ms)")
+        raise BadInput(f"{what} {value_s!r} s does not match the loop timing "
+                       f"({expected_ms} ms)")
 
 
 def ms_to_stamp(t_ms: int) -> tuple[int, int]:
     """(sec, nanosec) of a ROS ``builtin_interfaces/Time`` for ``t_ms`` ≥ 0 (exact)."""
     sec, rest = divmod(int(t_ms), 1000)
-    return sec, rest * _NS_PER_MS
+    return sec, rest * NS_PER_MS
 
 
 def stamp_to_ms(sec: int, nanosec: int) -> int:
@@ -74,7 +81,7 @@ def stamp_to_ms(sec: int, nanosec: int) -> int:
     ValueError
         If the stamp is not on a whole millisecond.
     """
-    ms, rest = divmod(int(nanosec), _NS_PER_MS)
+    ms, rest = divmod(int(nanosec), NS_PER_MS)
     if rest:
         raise ValueError(f"stamp {sec}.{int(nanosec):09d} s is not on a whole millisecond")
     return int(sec) * 1000 + ms
@@ -108,15 +115,15 @@ class LoopTiming:
         for name in ("physics_dt_ms", "frame_ms", "controller_period_ms"):
             value = getattr(self, name)
             if not (isinstance(value, int) and value > 0):
-                raise ValueError(f"LoopTiming.{name} must be a positive integer, got {value!r}")
+                raise BadInput(f"LoopTiming.{name} must be a positive integer, got {value!r}")
         for name in ("sensor_latency_ms", "computing_latency_ms", "actuator_latency_ms"):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 0):
-                raise ValueError(f"LoopTiming.{name} must be an integer >= 0, got {value!r}")
+                raise BadInput(f"LoopTiming.{name} must be an integer >= 0, got {value!r}")
         if self.frame_ms % self.physics_dt_ms:
-            raise ValueError("LoopTiming.frame_ms must be a multiple of physics_dt_ms")
+            raise BadInput("LoopTiming.frame_ms must be a multiple of physics_dt_ms")
         if self.controller_period_ms % self.frame_ms:
-            raise ValueError("LoopTiming.controller_period_ms must be a multiple of frame_ms")
+            raise BadInput("LoopTiming.controller_period_ms must be a multiple of frame_ms")
 
     @classmethod
     def from_vehicle(cls, data: Mapping[str, float], actuator_delay_deviation_s: float = 0.0

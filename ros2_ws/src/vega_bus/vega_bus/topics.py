@@ -28,7 +28,7 @@ from typing import NamedTuple
 
 __all__ = ["Topic", "TRUTH", "INS", "TVC_CMD", "ACTUATOR", "CLOCK", "DATA_TOPICS",
            "ALL_TOPICS", "READY", "RUN", "RECORDED", "DATA_QUEUE_DEPTH", "CONTROL_QUEUE_DEPTH",
-           "message_class", "data_qos", "clock_qos", "control_qos"]
+           "message_class"]
 
 DATA_QUEUE_DEPTH = 1000  # messages; ≥ 10 s of the fastest topic (100 Hz) in flight
 CONTROL_QUEUE_DEPTH = 10  # messages per writer of /vega/ready and /vega/run (each sends one)
@@ -66,31 +66,3 @@ def message_class(type_name: str):
     """The rosidl-generated Python class of ``pkg/msg/Type`` (imports the package)."""
     package, kind, name = type_name.split("/")
     return getattr(importlib.import_module(f"{package}.{kind}"), name)
-
-
-def data_qos():
-    """QoS profile of the data topics (RELIABLE, VOLATILE, KEEP_LAST DATA_QUEUE_DEPTH)."""
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=DATA_QUEUE_DEPTH,
-                      reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.VOLATILE)
-
-
-def clock_qos():
-    """QoS profile of /clock (RELIABLE, VOLATILE, KEEP_LAST DATA_QUEUE_DEPTH)."""
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=DATA_QUEUE_DEPTH,
-                      reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.VOLATILE)
-
-
-def control_qos():
-    """QoS profile of /vega/ready and /vega/run (RELIABLE, TRANSIENT_LOCAL, KEEP_LAST
-    CONTROL_QUEUE_DEPTH)."""
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=CONTROL_QUEUE_DEPTH,
-                      reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.TRANSIENT_LOCAL)

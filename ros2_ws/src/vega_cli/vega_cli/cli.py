@@ -11,9 +11,14 @@ Before anything else, :func:`main` applies the project's ROS environment to the 
 (:func:`vega_bringup.rosenv.configure_current_process`): LOCALHOST discovery and a ROS_DOMAIN_ID
 picked for this invocation unless the caller set one.
 
-Errors: the libraries raise ``ValueError`` (or subclasses) with one-line messages for bad
-input, and ``OSError`` for files; both are printed as ``vega: error: <message>`` on one line
-to stderr with exit status 2, like argparse's own usage errors.
+Errors (:mod:`vega_core.errors`): the libraries raise :class:`~vega_core.errors.BadInput`
+(or a subclass) with a one-line message for input the user can correct, and ``OSError`` for
+files; both are printed as ``vega: error: <message>`` on one line to stderr with exit status 2,
+like argparse's own usage errors. Any other exception (a ``ValueError`` from numpy, a
+``KeyError``, ...) is a defect, not the user's mistake: :func:`main` prints its traceback and a
+last line ``vega: internal error: …`` to stderr and returns 1 (it does not re-raise, so that
+callers and tests get the status like any other). A closed stdout (``vega … | head``) exits 0;
+Ctrl-C exits 130.
 """
 
 import argparse
@@ -21,6 +26,9 @@ import importlib
 import os
 import shlex
 import sys
+import traceback
+
+from vega_core.errors import BadInput, one_line
 
 from vega_bringup import rosenv
 
@@ -42,12 +50,12 @@ _PRINTED_VARIABLES = (
 
 def _register_unavailable(subparsers, name, error):
     """Add sub-command ``name`` whose module failed to import; running it reports ``error``."""
-    reason = f"{type(error).__name__}: {error}".replace("\n", " ")
+    reason = f"{type(error).__name__}: {one_line(error)}"
     parser = subparsers.add_parser(name, help=f"(unavailable: {reason})", add_help=False)
     parser.add_argument("rest", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
 
     def _fail(args):
-        raise ValueError(f"sub-command {name!r} is unavailable: {reason}")
+        raise BadInput(f"sub-command {name!r} is unavailable: {reason}")
 
     parser.set_defaults(func=_fail)
 
@@ -99,14 +107,15 @@ def main(argv=None):
     Returns
     -------
     int
-        Exit status: 0 on success, 2 on a usage or input error, 130 on Ctrl-C, else the
-        sub-command's status.
+        Exit status: 0 on success, 2 on a usage or input error (:class:`BadInput`,
+        ``OSError``), 1 on an internal error (any other exception: a defect, printed with its
+        traceback), 130 on Ctrl-C, else the sub-command's status.
     """
     caller_domain_id = os.environ.get("ROS_DOMAIN_ID", "").strip()
     try:
         domain_id = rosenv.configure_current_process()
-    except ValueError as exc:
-        print(f"vega: error: {exc}", file=sys.stderr)
+    except BadInput as exc:  # rosenv.DomainIdError: the caller's ROS_DOMAIN_ID
+        print(f"vega: error: {one_line(exc)}", file=sys.stderr)
         return 2
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -125,12 +134,16 @@ def main(argv=None):
         # the reader went away (`vega linearize ... | head`): not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
-    except (ValueError, OSError) as exc:
-        message = " ".join(str(exc).split()) or type(exc).__name__
-        print(f"vega: error: {message}", file=sys.stderr)
+    except (BadInput, OSError) as exc:
+        print(f"vega: error: {one_line(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130
+    except Exception as exc:  # noqa: BLE001 - a defect: show where, never as the user's mistake
+        traceback.print_exc()
+        print(f"vega: internal error: {type(exc).__name__}: {one_line(exc)} (a defect, not "
+              f"bad input; the traceback above says where)", file=sys.stderr)
+        return 1
     return 0 if status is None else int(status)
 
 

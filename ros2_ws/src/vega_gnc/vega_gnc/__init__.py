@@ -1,1 +1,3 @@
-"""Flight side of the VEGA TVC loop: controller tables, scheduler, controller runtime, health checks."""
+"""Flight side of the VEGA TVC loop: controller tables, scheduler, controller runtime, health
+checks.
+"""

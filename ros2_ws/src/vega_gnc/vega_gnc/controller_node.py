@@ -29,30 +29,35 @@ from __future__ import annotations
 
 import sys
 import time
-from vega_bus import topics
+
+from vega_core.errors import BadInput, one_line
+
+from vega_bus import qos, topics, wire
 from vega_bus.records import InsOut
 from vega_bus.schedule import RunInfo
 from vega_bus.shell import EXIT_BAD_INPUT, NodeExit, Shell, run_node
-from vega_bus.timing import ms_to_stamp
+from vega_bus.timing import NS_PER_MS
 
 __all__ = ["to_sample", "main"]
 
-_NS_PER_MS = 1_000_000
+
+def _ms_floor(sec: int, nanosec: int) -> int:
+    """Whole ms, rounded down, of a builtin_interfaces/Time (sec, nanosec)."""
+    return int(sec) * 1000 + int(nanosec) // NS_PER_MS
 
 
-def _ms_floor(stamp) -> tuple[int, bool]:
-    """(whole ms rounded down, exact?) of a builtin_interfaces/Time."""
-    ms, rest = divmod(int(stamp.nanosec), _NS_PER_MS)
-    return int(stamp.sec) * 1000 + ms, rest == 0
+def _on_ms(stamp) -> bool:
+    """True if a builtin_interfaces/Time is on a whole millisecond."""
+    return int(stamp.nanosec) % NS_PER_MS == 0
 
 
 def to_sample(msg) -> InsOut:
-    """An InsMeasurement as an :class:`vega_bus.records.InsOut`; stamps off the millisecond
-    grid → invalid."""
-    stamp, ok1 = _ms_floor(msg.header.stamp)
-    sample, ok2 = _ms_floor(msg.sample_stamp)
-    return InsOut(stamp, sample, msg.seq, msg.pitch_rad, msg.pitch_rate_radps, msg.drift_m,
-                  msg.drift_rate_mps, msg.velocity_mps, bool(msg.valid) and ok1 and ok2)
+    """An InsMeasurement as an :class:`vega_bus.records.InsOut` (:func:`vega_bus.wire.from_msg`,
+    stamps rounded down to the ms); stamps off the millisecond grid → invalid."""
+    sample = wire.from_msg(InsOut, msg, _ms_floor)
+    if _on_ms(msg.header.stamp) and _on_ms(msg.sample_stamp):
+        return sample
+    return sample._replace(valid=False)
 
 
 def _controller(shell: Shell) -> None:
@@ -63,34 +68,34 @@ def _controller(shell: Shell) -> None:
     from vega_gnc.controller_step import ControllerStep
 
     node = shell.node
-    path = shell.param("controller_table", "")
+    path = shell.param("controller_table")
     participants, barrier_timeout = shell.common_params()
     try:
         path = path or default_table_path()
         table = load_controller_table(path)
-    except (ValueError, OSError) as exc:
-        raise NodeExit(EXIT_BAD_INPUT, " ".join(str(exc).split())) from None
+    except (BadInput, OSError) as exc:
+        raise NodeExit(EXIT_BAD_INPUT, one_line(exc)) from None
 
     infos = []
 
     def on_run(msg):
         try:
             infos.append(RunInfo.from_json(msg.data))
-        except ValueError as exc:
+        except BadInput as exc:
             raise NodeExit(EXIT_BAD_INPUT, f"{topics.RUN.name}: {exc}") from None
 
-    node.create_subscription(String, topics.RUN.name, shell.guard(on_run), topics.control_qos())
+    node.create_subscription(String, topics.RUN.name, shell.guard(on_run), qos.control_qos())
     shell.wait_until(lambda: bool(infos),
                      f"the run description on {topics.RUN.name} (is the plant running?)",
                      barrier_timeout, failure="start barrier timed out")
     info = infos[-1]
     try:
         ctrl = ControllerStep(table, info.timing)
-    except ValueError as exc:
+    except BadInput as exc:
         raise NodeExit(EXIT_BAD_INPUT, f"{path}: {exc}") from None
 
-    pub = node.create_publisher(TvcCommand, topics.TVC_CMD.name, topics.data_qos())
-    queue = shell.inbox(InsMeasurement, topics.INS.name, topics.data_qos())
+    pub = node.create_publisher(TvcCommand, topics.TVC_CMD.name, qos.data_qos())
+    queue = shell.inbox(InsMeasurement, topics.INS.name, qos.data_qos())
     recorded = shell.recorder_progress(participants)
     shell.barrier(participants, [pub], barrier_timeout)
 
@@ -104,12 +109,7 @@ def _controller(shell: Shell) -> None:
         elapsed = clock() - t0
         if cmd is None:
             continue
-        out.header.stamp.sec, out.header.stamp.nanosec = ms_to_stamp(cmd.stamp_ms)
-        out.sample_stamp.sec, out.sample_stamp.nanosec = ms_to_stamp(cmd.sample_ms)
-        out.seq = cmd.seq
-        out.deflection_cmd_rad = cmd.deflection_cmd_rad
-        out.scheduling_velocity_mps = cmd.scheduling_velocity_mps
-        out.status = cmd.status
+        wire.to_msg(cmd, out)
         out.compute_time_s = elapsed
         pub.publish(out)
     shell.finish([pub], recorded, info.n_frames + 1)

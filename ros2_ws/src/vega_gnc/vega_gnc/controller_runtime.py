@@ -19,8 +19,9 @@ Defined safe behaviour (never an exception in the loop):
   controller state reset (``STATUS_SAFE_ZERO``); a later valid measurement restarts it;
 * velocity outside the grid → matrices clamped to the end point (``STATUS_VELOCITY_CLAMPED``);
 * command beyond ±``limit_rad`` → saturated (``STATUS_LIMITED``).
-Status values are those of ``vega_msgs/TvcCommand``; when several apply the most severe wins
-(SAFE_ZERO > HOLD_LAST > LIMITED > VELOCITY_CLAMPED > OK).
+Status values are the constants of ``vega_msgs/TvcCommand`` (taken from the message class);
+when several apply the most severe wins (SAFE_ZERO > HOLD_LAST > LIMITED > VELOCITY_CLAMPED >
+OK).
 """
 
 from __future__ import annotations
@@ -30,18 +31,19 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
+from vega_msgs.msg import TvcCommand
 
 from vega_gnc.controller_table import ControllerTable
 
 __all__ = ["STATUS_OK", "STATUS_HOLD_LAST", "STATUS_VELOCITY_CLAMPED", "STATUS_SAFE_ZERO",
            "STATUS_LIMITED", "Measurement", "Command", "RuntimeLimits", "ControllerRuntime"]
 
-# Same values as the constants of vega_msgs/msg/TvcCommand.msg.
-STATUS_OK = 0
-STATUS_HOLD_LAST = 1
-STATUS_VELOCITY_CLAMPED = 2
-STATUS_SAFE_ZERO = 3
-STATUS_LIMITED = 4
+# The status values are declared once, in vega_msgs/msg/TvcCommand.msg; these are its constants.
+STATUS_OK = TvcCommand.STATUS_OK
+STATUS_HOLD_LAST = TvcCommand.STATUS_HOLD_LAST
+STATUS_VELOCITY_CLAMPED = TvcCommand.STATUS_VELOCITY_CLAMPED
+STATUS_SAFE_ZERO = TvcCommand.STATUS_SAFE_ZERO
+STATUS_LIMITED = TvcCommand.STATUS_LIMITED
 _SEVERITY = {STATUS_OK: 0, STATUS_VELOCITY_CLAMPED: 1, STATUS_LIMITED: 2,
              STATUS_HOLD_LAST: 3, STATUS_SAFE_ZERO: 4}
 _FIELDS = {"theta_ins_rad": "pitch_rad", "theta_dot_ins_radps": "pitch_rate_radps",

@@ -5,39 +5,21 @@ Plain Python, no ROS: the in-process simulation (:mod:`vega_sim.closed_loop`) an
 produce the same numbers. Every measurement whose sample time is a multiple of the controller
 period (20 ms) goes through :class:`vega_gnc.controller_runtime.ControllerRuntime` exactly as
 flown, at its arrival; the command is stamped arrival + computing latency (12 ms)
-(:mod:`vega_bus.timing`). → :class:`CommandOut` (``TvcCommand``)
+(:mod:`vega_bus.timing`). → :class:`vega_bus.records.CommandOut` (``TvcCommand``)
 
 A measurement is a :class:`vega_bus.records.InsOut` (the flight side never imports the truth
-side, vega_plant).
+side, vega_sim). Both records live in :mod:`vega_bus.records` and are re-exported here.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
-from vega_bus.records import InsOut
+from vega_bus.records import CommandOut, InsOut
 from vega_bus.timing import LoopTiming, check_ms
 
 from vega_gnc.controller_runtime import ControllerRuntime, Measurement, RuntimeLimits
 from vega_gnc.controller_table import ControllerTable
 
 __all__ = ["CommandOut", "ControllerStep"]
-
-
-class CommandOut(NamedTuple):
-    """One nozzle command: the fields of ``vega_msgs/TvcCommand`` except the wall-clock
-    ``compute_time_s``, which the node measures itself.
-
-    ``stamp_ms`` = arrival of the measurement + computing latency; ``sample_ms`` = the
-    measurement's sample time.
-    """
-
-    stamp_ms: int
-    sample_ms: int
-    seq: int
-    deflection_cmd_rad: float
-    scheduling_velocity_mps: float
-    status: int
 
 
 class ControllerStep:

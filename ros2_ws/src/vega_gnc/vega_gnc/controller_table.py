@@ -6,7 +6,7 @@ form ``Ad Bd Cd Dd`` at the controller rate, plus γ, the rate bounds and a JSON
 string. :func:`load_controller_table` validates everything before the loop ever sees it —
 version, keys, shapes, finiteness, grid monotonicity, metadata, and that the discrete
 controller's stability at each grid point is what the synthesis recorded — and reports any
-problem as one line (:class:`ControllerTableError`, a ``ValueError``).
+problem as one line (:class:`ControllerTableError`, a :class:`vega_core.errors.BadFile`).
 
 Matrix layout: leading axis = grid point; if the controller depends on ρ̇ an extra axis
 right after it holds the ρ̇ slices listed in ``rate_grid_mps2``.
@@ -26,6 +26,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from vega_core.errors import BadFile, BadInput
+
 __all__ = [
     "default_table_path",
     "FORMAT_VERSION", "MEASUREMENT_NAMES", "REQUIRED_METADATA", "ControllerTable",
@@ -43,7 +45,7 @@ _REQUIRED_KEYS = ("format_version", "grid_v_mps", "dt_s", "gamma", "gamma_min",
                   "rate_bounds_mps2", "metadata") + _MATRICES
 
 
-class ControllerTableError(ValueError):
+class ControllerTableError(BadFile):
     """A controller table that cannot be trusted (message is one line)."""
 
 
@@ -163,7 +165,8 @@ def validate_arrays(path: str, arrays: Mapping[str, np.ndarray]) -> ControllerTa
     rate_grid = None
     if "rate_grid_mps2" in arrays:
         rate_grid = np.asarray(arrays["rate_grid_mps2"], dtype=float)
-        if rate_grid.shape != (2,) or not np.all(np.isfinite(rate_grid)) or rate_grid[1] <= rate_grid[0]:
+        if (rate_grid.shape != (2,) or not np.all(np.isfinite(rate_grid))
+                or rate_grid[1] <= rate_grid[0]):
             raise _fail(path, "'rate_grid_mps2' must be 2 increasing finite values")
     lead = (grid.size,) + ((2,) if rate_grid is not None else ())
     A = num["A"]
@@ -172,7 +175,8 @@ def validate_arrays(path: str, arrays: Mapping[str, np.ndarray]) -> ControllerTa
     n = A.shape[-1]
     names = meta["input_names"]
     if (not isinstance(names, list) or not names
-            or any(name not in MEASUREMENT_NAMES for name in names) or len(set(names)) != len(names)):
+            or any(name not in MEASUREMENT_NAMES for name in names)
+            or len(set(names)) != len(names)):
         raise _fail(path, f"metadata 'input_names' must be distinct names from {MEASUREMENT_NAMES}")
     ny, nu = len(names), 1
     expected = {"B": (n, ny), "C": (nu, n), "D": (nu, ny)}
@@ -233,7 +237,7 @@ def default_table_path() -> Path:
 
     Raises
     ------
-    ValueError
+    BadInput
         If the package ``vega_gnc`` is not in the ament index (workspace not built).
     """
     from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
@@ -241,5 +245,5 @@ def default_table_path() -> Path:
     try:
         return Path(get_package_share_directory("vega_gnc")) / "config" / "lpv_controller.npz"
     except PackageNotFoundError:
-        raise ValueError("package 'vega_gnc' not found in the ament index; did 'make setup' "
-                         "build it?") from None
+        raise BadInput("package 'vega_gnc' not found in the ament index; did 'make setup' "
+                       "build it?") from None

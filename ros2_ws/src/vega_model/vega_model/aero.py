@@ -42,7 +42,7 @@ class ScalarTable:
     ``numpy.interp`` costs ≈ 2.5 µs per scalar call (array conversion); this costs ≈ 0.3 µs.
     Same arithmetic as numpy's C kernel: the end values are held outside [x_0, x_last], a
     breakpoint returns its own y, otherwise ``slope·(x − x_j) + y_j`` with
-    ``slope = (y_j+1 − y_j)/(x_j+1 − x_j)`` (tests/test_aero.py compares the two).
+    ``slope = (y_j+1 − y_j)/(x_j+1 − x_j)`` (tests/model/test_aero.py compares the two).
 
     Parameters
     ----------

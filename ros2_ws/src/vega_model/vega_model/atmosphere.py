@@ -4,13 +4,13 @@ A thin wrapper around a maintained implementation, ``fluids.atmosphere.ATMOSPHER
 (Caleb Bell's *fluids*; NOAA/NASA/USAF, "U.S. Standard Atmosphere, 1976", NASA-TM-X-74335).
 The input is the **geometric** altitude above mean sea level; the model converts it to
 geopotential altitude itself (so T = 216.65 K is reached at 11 000 m *geopotential*, i.e.
-11 019 m geometric). ``tests/test_atmosphere.py`` cross-checks it against the independent
+11 019 m geometric). ``tests/model/test_atmosphere.py`` cross-checks it against the independent
 ``ambiance`` package (ICAO 1993 standard atmosphere, identical to US76 up to 80 km in the
 quantities used here) and against textbook values.
 
 The thesis (§2.5, Eqs. 2.12 and 2.15) needs ρ(h) for the dynamic pressure and the speed of
 sound for the Mach number; its own code used an exponential density fit (see
-../shared/design/THESIS_NOTES.md), which we replace by the standard model.
+docs/THESIS_NOTES.md §3), which we replace by the standard model.
 """
 
 from __future__ import annotations

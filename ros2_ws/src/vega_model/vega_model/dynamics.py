@@ -10,7 +10,7 @@ equations of §2.4; derivation and sign conventions in docs/MODEL.md):
   small-angle approximations in α, β and θ, with the nonlinear normal-force curve
   C_N(α, M), thrust resolved through the actual angles and the nozzle (tail-wags-dog)
   kinematics; its Jacobian at the operating point of thesis Table 2.2 (all zero) equals
-  :func:`linear_model` (tests/test_model_jacobian.py).
+  :func:`linear_model` (tests/model/test_model_jacobian.py).
 * :func:`ins_outputs` — INS-location kinematics, Eqs. 2.33–2.36 (also used by the INS model).
 
 Conventions: x forward along the reference velocity, z normal to it in the pitch plane;

@@ -27,6 +27,7 @@ from typing import Mapping
 import numpy as np
 
 from vega_core.documents import read_text
+from vega_core.errors import BadFile
 
 __all__ = [
     "COLUMNS",
@@ -43,7 +44,7 @@ FORMAT_NAME = "vega_flight_conditions"
 FORMAT_VERSION = 1
 
 
-class FlightConditionsError(ValueError):
+class FlightConditionsError(BadFile):
     """A malformed flight-condition file (message is one line naming the file)."""
 
 
@@ -90,7 +91,7 @@ def default_flight_conditions_path() -> Path:
 
 
 def format_table(columns: Mapping[str, np.ndarray], provenance: Mapping[str, str]) -> str:
-    """The text of a flight-condition file (the inverse of :meth:`FlightConditions.load`).
+    r"""The text of a flight-condition file (the inverse of :meth:`FlightConditions.load`).
 
     Parameters
     ----------

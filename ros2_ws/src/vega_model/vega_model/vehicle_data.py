@@ -4,7 +4,7 @@ Every leaf of ``data/vehicle.yaml`` is a mapping ``{value, unit, source}``. The 
 checks every field named in :data:`FIELDS` is present, numeric, finite, of the right
 shape and in a unit convertible to the SI unit the code expects, converts it to SI and
 returns a read-only :class:`VehicleData`. Any problem is reported as one line naming the
-file and the field (:class:`VehicleDataError`, a ``ValueError``).
+file and the field (:class:`VehicleDataError`, a :class:`vega_core.errors.BadFile`).
 
 Units accepted in the file (converted on load): the SI unit itself, and ``deg``,
 ``deg/s``, ``deg/s^2``, ``kN``, ``t``, ``km``, ``ms``, ``%`` where they make sense.
@@ -20,9 +20,9 @@ from pathlib import Path
 from typing import Mapping
 
 import numpy as np
-import yaml
 
-from vega_core.documents import read_text
+from vega_core.documents import load_yaml
+from vega_core.errors import BadFile
 
 __all__ = [
     "FIELDS",
@@ -35,7 +35,7 @@ __all__ = [
 ]
 
 
-class VehicleDataError(ValueError):
+class VehicleDataError(BadFile):
     """A missing or malformed field in a vehicle data file (message is one line)."""
 
 
@@ -277,15 +277,7 @@ def _convert(path: str, key: str, leaf, si_unit: str, shape: str):
     return value, unit, leaf["source"].strip()
 
 
-def _parse(path: str, text: str) -> VehicleData:
-    try:
-        tree = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = f" (line {mark.line + 1})" if mark is not None else ""
-        raise VehicleDataError(f"{path}: not valid YAML{line}") from None
-    if not isinstance(tree, Mapping):
-        raise VehicleDataError(f"{path}: top level must be a mapping")
+def _parse(path: str, tree: Mapping) -> VehicleData:
     values, units, sources = {}, {}, {}
     for key, (si_unit, shape) in FIELDS.items():
         leaf = _lookup(tree, key)
@@ -315,10 +307,10 @@ def load_vehicle_data(path: str | Path | None = None) -> VehicleData:
     if path is None:
         return _load_default()
     p = Path(path)
-    return _parse(str(p), read_text(p, "vehicle data", VehicleDataError))
+    return _parse(str(p), load_yaml(p, "vehicle data", VehicleDataError))
 
 
 @lru_cache(maxsize=1)
 def _load_default() -> VehicleData:
     p = default_vehicle_path()
-    return _parse(str(p), p.read_text(encoding="utf-8"))
+    return _parse(str(p), load_yaml(p, "vehicle data", VehicleDataError))

@@ -1,1 +1,3 @@
-"""The in-process simulation: scenarios, the loop's step classes, the closed loop and the requirements (plain Python)."""
+"""The in-process simulation: scenarios, the loop's step classes, the closed loop and the
+requirements (plain Python).
+"""

@@ -2,8 +2,8 @@
 
 :func:`run_scenario` flies a :class:`~vega_sim.scenario.Scenario` with a controller table
 through the same classes the SIL nodes wrap (:mod:`vega_sim.plant_step`,
-:mod:`vega_sim.device_steps`, :mod:`vega_gnc.controller_step`), one frame (10 ms) at a time, in the order the lockstep SIL runs
-them::
+:mod:`vega_sim.device_steps`, :mod:`vega_gnc.controller_step`), one frame (10 ms) at a time,
+in the order the lockstep SIL runs them::
 
     truth(t_f) ──► INS.sample ──► controller.step (every 2nd sample) ──► actuator.receive
          ▲                                                                    │
@@ -21,7 +21,7 @@ A SIL node builds its part with the factory the in-process run uses
 (:mod:`vega_sim.assembly`: ``make_plant``, ``make_ins`` — its model parameters at a sample
 time are :func:`vega_sim.plant_step.parameters_at` —, ``make_actuator``; the controller:
 :class:`vega_gnc.controller_step.ControllerStep` from the table and the loop timing) and
-converts stamps with :mod:`vega_bus.timing`; tests/test_closed_loop.py checks that
+converts stamps with :mod:`vega_bus.timing`; tests/sim/test_closed_loop.py checks that
 nodes built and driven that way reproduce :func:`run_scenario` bit for bit.
 """
 
@@ -178,9 +178,10 @@ def run_scenario(scenario: Scenario | str | Path, table: ControllerTable | str |
 
     Raises
     ------
-    ValueError
+    BadInput
         Bad scenario or table (one line), a span outside the flight-condition table, or a
-        table whose sample time is not the controller period.
+        table whose sample time is not the controller period
+        (:class:`vega_core.errors.BadInput`).
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)

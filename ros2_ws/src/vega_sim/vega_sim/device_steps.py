@@ -3,69 +3,38 @@
 Plain Python, no ROS: the in-process simulation (:mod:`vega_sim.closed_loop`) and the SIL
 nodes (:mod:`vega_plant.nodes`) call these same classes, so both produce the same numbers.
 Each class takes and returns plain values whose fields are those of the ``vega_msgs`` message
-it will publish, with stamps as integer milliseconds (:mod:`vega_bus.timing` converts to ROS
-stamps). The controller's step class, on the flight side, is
+it will publish, with stamps as integer milliseconds (:mod:`vega_bus.wire` converts them to
+messages). The controller's step class, on the flight side, is
 :class:`vega_gnc.controller_step.ControllerStep`:
 
 * :class:`InsStep` — samples the truth every frame (100 Hz) with
   :class:`vega_model.ins.InsSensor` (seeded noise); the measurement is stamped sample +
   sensor latency (12 ms). → :class:`vega_bus.records.InsOut` (``InsMeasurement``)
-* ControllerStep (:mod:`vega_gnc.controller_step`) — every measurement whose sample time is a multiple of the
-  controller period (20 ms) goes through :class:`vega_gnc.controller_runtime.ControllerRuntime`
-  exactly as flown, at its arrival; the command is stamped arrival + computing latency (12 ms).
-  → :class:`CommandOut` (``TvcCommand``)
+* ControllerStep (:mod:`vega_gnc.controller_step`) — every measurement whose sample time is
+  a multiple of the controller period (20 ms) goes through
+  :class:`vega_gnc.controller_runtime.ControllerRuntime` exactly as flown, at its arrival; the
+  command is stamped arrival + computing latency (12 ms).
+  → :class:`vega_bus.records.CommandOut` (``TvcCommand``)
 * :class:`ActuatorStep` — applies each command at its stamp + actuator latency (15 ms), holds
   it until the next one, and integrates :class:`vega_model.actuator.TvcActuator` (limits
-  included) at the physics rate one frame at a time. → :class:`ActuatorOut` (``ActuatorState``)
+  included) at the physics rate one frame at a time. → :class:`vega_bus.records.ActuatorOut`
+  (``ActuatorState``)
+
+The records live in :mod:`vega_bus.records` (``ActuatorOut`` is re-exported here).
 """
 
 from __future__ import annotations
 
 import bisect
-from typing import NamedTuple
 
-from vega_bus.records import InsOut
+from vega_bus.records import ActuatorOut, InsOut, TruthOut
 from vega_bus.timing import LoopTiming, check_ms
 
 from vega_model.actuator import ActuatorParams, TvcActuator
 from vega_model.ins import InsParams, InsSensor
 from vega_model.parameters import ModelParameters
-from vega_sim.plant_step import TruthOut
 
 __all__ = ["ActuatorOut", "InsStep", "ActuatorStep"]
-
-
-class ActuatorOut(NamedTuple):
-    """The nozzle over one frame: the fields of ``vega_msgs/ActuatorState``.
-
-    Samples at the ends of the frame's physics steps, oldest first; ``stamp_ms`` is the time
-    of the last one. ``command_samples_rad`` (the command held over each step) is not carried
-    by the message; a bag check rebuilds it from the ``TvcCommand`` stamps and the actuator
-    latency.
-    """
-
-    stamp_ms: int
-    seq: int
-    deflection_samples_rad: tuple[float, ...]
-    rate_samples_radps: tuple[float, ...]
-    accel_samples_radps2: tuple[float, ...]
-    command_samples_rad: tuple[float, ...]
-    sample_period_s: float
-
-    @property
-    def deflection_rad(self) -> float:
-        """Nozzle angle at the stamp [rad]."""
-        return self.deflection_samples_rad[-1]
-
-    @property
-    def rate_radps(self) -> float:
-        """Nozzle rate at the stamp [rad/s]."""
-        return self.rate_samples_radps[-1]
-
-    @property
-    def accel_radps2(self) -> float:
-        """Nozzle acceleration at the stamp [rad/s²]."""
-        return self.accel_samples_radps2[-1]
 
 
 class InsStep:
@@ -142,7 +111,7 @@ class ActuatorStep:
     def receive(self, cmd) -> None:
         """Queue a command; it applies from ``cmd.stamp_ms`` + actuator latency.
 
-        ``cmd``: a :class:`vega_gnc.controller_step.CommandOut` or anything with its
+        ``cmd``: a :class:`vega_bus.records.CommandOut` or anything with its
         ``stamp_ms``, ``seq`` and ``deflection_cmd_rad`` fields.
         """
         bisect.insort(self._pending, (cmd.stamp_ms + self._latency_ms, cmd.seq,

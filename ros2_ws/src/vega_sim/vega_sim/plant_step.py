@@ -7,13 +7,13 @@ plant node run this same code. Nothing here re-derives the physics: the equation
 
 * :class:`ParameterTrack` — model parameters along the flight, evaluated once per refresh
   interval (default: once per 10 ms frame, at its start — they vary slowly; the effect of
-  refreshing every 1 ms is measured in tests/test_closed_loop.py) and, for the linear plant,
+  refreshing every 1 ms is measured in tests/sim/test_closed_loop.py) and, for the linear plant,
   the exact zero-order-hold discretisation of :func:`vega_model.dynamics.linear_model`.
 * :class:`PlantWind` — the wind along +z at the physics rate: :class:`vega_model.wind.WindModel`
   plus, optionally, the thesis' constant-driven Dryden filter (:func:`thesis_dryden_coefficients`).
 * :class:`PlantStep` — the plant, linear or nonlinear, integrated one frame at a time from the
-  actuator's physics-rate samples; publishes :class:`TruthOut` (the fields of
-  ``vega_msgs/VehicleState``) at every frame time.
+  actuator's physics-rate samples; publishes :class:`vega_bus.records.TruthOut` (the fields
+  of ``vega_msgs/VehicleState``; re-exported here) at every frame time.
 
 Inputs over one physics step [t_k, t_k+1] are held at their step means, from the actuator
 samples at both ends: β̄ = (β_k + β_k+1)/2 (trapezoid), the rate likewise, and
@@ -29,6 +29,10 @@ from functools import lru_cache
 from typing import Mapping, NamedTuple, Sequence
 
 import numpy as np
+
+from vega_core.errors import BadInput
+
+from vega_bus.records import TruthOut
 
 from vega_model.dynamics import (STATES, NonlinearModel, angle_of_attack, linear_model,
                                  nonlinear_outputs)
@@ -52,39 +56,6 @@ _N = len(STATES)
 _EXPM_CHUNK = 4096
 
 
-class TruthOut(NamedTuple):
-    """Truth at one frame time: the fields of ``vega_msgs/VehicleState`` (SI units).
-
-    ``dynamic_pressure_pa``, ``mach``, ``velocity_mps`` and ``altitude_m`` are those of the
-    reference trajectory at the stamp (the model parameters); ``aoa_rad`` is the kinematic
-    angle of attack at the CP (:func:`vega_model.dynamics.angle_of_attack`) and
-    ``q_alpha_pa_rad`` the plant's own Qα output; ``wind_mps`` the wind held over the
-    physics step that starts at the stamp.
-    """
-
-    stamp_ms: int
-    seq: int
-    pitch_rad: float
-    pitch_rate_radps: float
-    drift_m: float
-    drift_rate_mps: float
-    aoa_rad: float
-    q_alpha_pa_rad: float
-    dynamic_pressure_pa: float
-    mach: float
-    velocity_mps: float
-    altitude_m: float
-    wind_mps: float
-    bending_q: tuple[float, float]
-    bending_qdot: tuple[float, float]
-
-    @property
-    def state(self) -> tuple[float, ...]:
-        """The plant state in :data:`vega_model.dynamics.STATES` order."""
-        return (self.pitch_rad, self.pitch_rate_radps, self.drift_m, self.drift_rate_mps,
-                *self.bending_q, *self.bending_qdot)
-
-
 class LinearFrames(NamedTuple):
     """The linear plant over whole frames: x(t_f+1) = H[f] [x(t_f); U_f].
 
@@ -104,7 +75,7 @@ def _expm_batched(m: np.ndarray) -> np.ndarray:
 
     Scaling and squaring with a degree-10 Taylor polynomial (Horner form): with
     ‖M/2^s‖₁ ≤ 1/4 the truncation error is below 0.25^11/11! ≈ 6e-15. Batched numpy products
-    only (tests/test_closed_loop.py compares it with ``scipy.linalg.expm``): scipy's expm works
+    only (tests/sim/test_closed_loop.py compares it with ``scipy.linalg.expm``): scipy's expm works
     matrix by matrix, which is ~10× slower for thousands of 11×11 matrices.
     """
     norm = float(np.abs(m).sum(axis=-2).max()) if m.size else 0.0
@@ -153,7 +124,7 @@ class ParameterTrack:
     -----
     Entry ``e`` holds :func:`parameters_at` (t_e) with t_e = t_start + e·refresh: the
     parameters are held constant over each refresh interval (a zero-order hold of slowly
-    varying data; the sensitivity to the interval is measured in tests/test_closed_loop.py).
+    varying data; the sensitivity to the interval is measured in tests/sim/test_closed_loop.py).
     Objects are read-only once built and may be shared.
     """
 
@@ -161,15 +132,15 @@ class ParameterTrack:
                  frame_ms: int = 10, refresh_ms: int = 10, dt_ms: int = 1,
                  deviations: Mapping[str, float] | None = None):
         if frame_ms % refresh_ms or refresh_ms % dt_ms:
-            raise ValueError(f"parameter refresh {refresh_ms} ms must divide the frame "
-                             f"({frame_ms} ms) and be a multiple of the step ({dt_ms} ms)")
+            raise BadInput(f"parameter refresh {refresh_ms} ms must divide the frame "
+                           f"({frame_ms} ms) and be a multiple of the step ({dt_ms} ms)")
         if t_start_ms % frame_ms or t_end_ms % frame_ms or t_end_ms <= t_start_ms:
-            raise ValueError(f"span [{t_start_ms}, {t_end_ms}] ms must be whole frames of "
-                             f"{frame_ms} ms with t_end > t_start")
+            raise BadInput(f"span [{t_start_ms}, {t_end_ms}] ms must be whole frames of "
+                           f"{frame_ms} ms with t_end > t_start")
         lo, hi = context.time_range_s
         if t_start_ms < 1000.0 * lo or t_end_ms + frame_ms > 1000.0 * hi:
-            raise ValueError(f"span [{t_start_ms / 1000}, {t_end_ms / 1000}] s is outside the "
-                             f"flight-condition table [{lo}, {hi - frame_ms / 1000}] s")
+            raise BadInput(f"span [{t_start_ms / 1000}, {t_end_ms / 1000}] s is outside the "
+                           f"flight-condition table [{lo}, {hi - frame_ms / 1000}] s")
         self.context = context
         self.t_start_ms, self.t_end_ms = int(t_start_ms), int(t_end_ms)
         self.frame_ms, self.refresh_ms, self.dt_ms = int(frame_ms), int(refresh_ms), int(dt_ms)
@@ -391,7 +362,7 @@ class PlantStep:
     def __init__(self, track: ParameterTrack, wind: PlantWind, model: str = "nonlinear",
                  x0: Sequence[float] | None = None, beta0_rad: float = 0.0):
         if model not in PLANT_MODELS:
-            raise ValueError(f"plant model must be one of {PLANT_MODELS}, got {model!r}")
+            raise BadInput(f"plant model must be one of {PLANT_MODELS}, got {model!r}")
         self.track = track
         self.model = model
         self._wind = wind
@@ -399,7 +370,7 @@ class PlantStep:
         self._steps = track.frame_ms // track.dt_ms
         x = np.zeros(_N) if x0 is None else np.array(x0, dtype=float)
         if x.shape != (_N,) or not np.all(np.isfinite(x)):
-            raise ValueError(f"x0 must be {_N} finite values ({', '.join(STATES)})")
+            raise BadInput(f"x0 must be {_N} finite values ({', '.join(STATES)})")
         self._x = x
         self._beta, self._rate = float(beta0_rad), 0.0
         self._t_ms = track.t_start_ms

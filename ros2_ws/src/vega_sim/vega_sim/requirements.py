@@ -28,8 +28,8 @@ at M = 0, where the dynamic pressure and so the load vanish; the load check is t
 **Margins.** For each requirement the binding sample is the one with the smallest margin
 ``bound − |value|``; the report gives the signed value there, the bound there, the margin and
 the time. The thesis' Table 5.1 figures are reported side by side; its β was the controller
-command and its ∫β a signed integral (THESIS_NOTES), so the report also gives those two
-figures for the command when it is passed (``beta_cmd_rad``).
+command and its ∫β a signed integral (docs/THESIS_NOTES.md §4), so the report also gives
+those two figures for the command when it is passed (``beta_cmd_rad``).
 """
 
 from __future__ import annotations
@@ -42,10 +42,10 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
-import yaml
 
 from vega_model.flight_conditions import FlightConditions
-from vega_core.documents import read_text
+from vega_core.documents import load_yaml
+from vega_core.errors import BadFile
 
 __all__ = ["REQUIREMENT_KEYS", "ThesisFigure", "RequirementSpec", "RequirementResult",
            "RequirementReport", "default_requirements_path", "load_requirements",
@@ -171,8 +171,8 @@ def default_requirements_path() -> Path:
 
 
 def _leaf(path: str, key: str, node: Any, si_unit: str, allowed, vector: bool = False):
-    def error(sub: str, problem: str) -> ValueError:
-        return ValueError(f"{path}: field '{key}{'.' + sub if sub else ''}': {problem}")
+    def error(sub: str, problem: str) -> BadFile:
+        return BadFile(f"{path}: field '{key}{'.' + sub if sub else ''}': {problem}")
 
     if not isinstance(node, Mapping):
         raise error("", "must be a mapping")
@@ -198,23 +198,17 @@ def _leaf(path: str, key: str, node: Any, si_unit: str, allowed, vector: bool = 
     return value
 
 
-def _parse(path: str, text: str) -> RequirementSpec:
-    try:
-        tree = yaml.safe_load(text)
-    except yaml.YAMLError:
-        raise ValueError(f"{path}: not valid YAML") from None
-    if not isinstance(tree, Mapping):
-        raise ValueError(f"{path}: top level must be a mapping")
+def _parse(path: str, tree: Mapping) -> RequirementSpec:
     top = ("schema_version",) + tuple(row[0] for row in _ROWS.values()) + ("thesis_table_5_1",)
     for k in tree:
         if k not in top:
-            raise ValueError(f"{path}: field '{k}': unknown key")
+            raise BadFile(f"{path}: field '{k}': unknown key")
     for k in top:
         if k not in tree:
-            raise ValueError(f"{path}: field '{k}': missing")
+            raise BadFile(f"{path}: field '{k}': missing")
     if tree["schema_version"] != 1:
-        raise ValueError(f"{path}: field 'schema_version': expected 1, "
-                         f"got {tree['schema_version']!r}")
+        raise BadFile(f"{path}: field 'schema_version': expected 1, "
+                      f"got {tree['schema_version']!r}")
     values, sources = {}, {}
     for key, (file_key, si_unit, *_rest) in _ROWS.items():
         node = tree[file_key]
@@ -223,36 +217,36 @@ def _parse(path: str, text: str) -> RequirementSpec:
         values[key] = _leaf(path, file_key, node, si_unit, allowed, vector=envelope)
         source = node.get("source")
         if not isinstance(source, str) or not source.strip():
-            raise ValueError(f"{path}: field '{file_key}.source': must be a non-empty string")
+            raise BadFile(f"{path}: field '{file_key}.source': must be a non-empty string")
         sources[key] = source.strip()
         if not envelope and not values[key] > 0.0:
-            raise ValueError(f"{path}: field '{file_key}.value': must be > 0")
+            raise BadFile(f"{path}: field '{file_key}.value': must be > 0")
     env = tree["q_alpha_envelope"]
     mach = env.get("mach")
     if (not isinstance(mach, list) or len(mach) < 2
             or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in mach)):
-        raise ValueError(f"{path}: field 'q_alpha_envelope.mach': must be a list of numbers")
+        raise BadFile(f"{path}: field 'q_alpha_envelope.mach': must be a list of numbers")
     mach = np.array(mach, dtype=float)
     if mach.shape != values["q_alpha"].shape:
-        raise ValueError(f"{path}: field 'q_alpha_envelope': mach and value differ in length")
+        raise BadFile(f"{path}: field 'q_alpha_envelope': mach and value differ in length")
     if np.any(np.diff(mach) <= 0) or mach[0] < 0:
-        raise ValueError(f"{path}: field 'q_alpha_envelope.mach': must increase from >= 0")
+        raise BadFile(f"{path}: field 'q_alpha_envelope.mach': must increase from >= 0")
     if np.any(values["q_alpha"] < 0):
-        raise ValueError(f"{path}: field 'q_alpha_envelope.value': must be >= 0")
+        raise BadFile(f"{path}: field 'q_alpha_envelope.value': must be >= 0")
     provenance = env.get("provenance", {})
     if not isinstance(provenance, Mapping):
-        raise ValueError(f"{path}: field 'q_alpha_envelope.provenance': must be a mapping")
+        raise BadFile(f"{path}: field 'q_alpha_envelope.provenance': must be a mapping")
     thesis_node = tree["thesis_table_5_1"]
     if not isinstance(thesis_node, Mapping):
-        raise ValueError(f"{path}: field 'thesis_table_5_1': must be a mapping")
+        raise BadFile(f"{path}: field 'thesis_table_5_1': must be a mapping")
     thesis = {}
     for k, node in thesis_node.items():
         if k not in _ROWS:
-            raise ValueError(f"{path}: field 'thesis_table_5_1.{k}': unknown key")
+            raise BadFile(f"{path}: field 'thesis_table_5_1.{k}': unknown key")
         value = _leaf(path, f"thesis_table_5_1.{k}", node, _ROWS[k][1], ("value", "unit", "note"))
         note = node.get("note", "")
         if not isinstance(note, str):
-            raise ValueError(f"{path}: field 'thesis_table_5_1.{k}.note': must be a string")
+            raise BadFile(f"{path}: field 'thesis_table_5_1.{k}.note': must be a string")
         thesis[k] = ThesisFigure(value, note.strip())
     for arr in (mach, values["q_alpha"]):
         arr.setflags(write=False)
@@ -269,19 +263,20 @@ def load_requirements(path: str | Path | None = None) -> RequirementSpec:
 
     Raises
     ------
-    ValueError
-        One line naming the file and the field.
+    BadFile
+        One line naming the file and the field (:mod:`vega_core.documents` for unreadable
+        or non-YAML files).
     """
     if path is None:
         return _load_default()
     p = Path(path)
-    return _parse(str(p), read_text(p, "requirements"))
+    return _parse(str(p), load_yaml(p, "requirements"))
 
 
 @lru_cache(maxsize=1)
 def _load_default() -> RequirementSpec:
     p = default_requirements_path()
-    return _parse(str(p), p.read_text(encoding="utf-8"))
+    return _parse(str(p), load_yaml(p, "requirements"))
 
 
 def envelope_from_trajectory(mach_points, alpha_max_rad: float,

@@ -21,8 +21,8 @@ def load_run(scenario_name: str, seed: int) -> tuple[Scenario, int, RunInfo]:
 
     Raises
     ------
-    ValueError, OSError
-        One line on an unknown or invalid scenario.
+    BadInput
+        One line on an unknown or invalid scenario (:class:`vega_core.errors.BadInput`).
     """
     scenario = load_scenario(scenario_name)
     seed = scenario.seed if seed == -1 else seed

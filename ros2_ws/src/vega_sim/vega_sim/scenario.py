@@ -3,7 +3,8 @@
 One YAML file per scenario in ``vega_sim/scenarios/`` (the file name is the scenario name);
 :func:`load_scenario` validates a file completely — unknown or missing keys, wrong types,
 values out of range — and reports the first problem as one line naming the file and the
-field (``ValueError``). The in-process simulation and the SIL read the same files.
+field (:class:`vega_core.errors.BadFile`, a ``ValueError``). The in-process simulation and
+the SIL read the same files.
 
 File format (SI units, radians; ``#`` comments allowed)::
 
@@ -41,13 +42,12 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Mapping
 
-import yaml
-
 from vega_bus.timing import LoopTiming, seconds_to_ms
 
 from vega_model.dynamics import STATES
 from vega_sim.plant_step import PLANT_MODELS
-from vega_core.documents import read_text
+from vega_core.documents import parse_yaml, read_text
+from vega_core.errors import BadArgument, BadFile, BadInput
 from vega_model.uncertainty import UncertaintySet
 from vega_model.vehicle_data import VehicleData, load_vehicle_data
 from vega_model.wind import INTENSITIES
@@ -123,7 +123,7 @@ class Scenario:
         try:
             _validate(self, load_vehicle_data())
         except _FieldError as exc:
-            raise ValueError(f"scenario '{self.name}': {exc}") from exc
+            raise BadInput(f"scenario '{self.name}': {exc}") from exc
 
     @property
     def t_start_ms(self) -> int:
@@ -155,12 +155,12 @@ def scenario_path(name: str) -> Path:
 
     Raises
     ------
-    ValueError
+    BadArgument
         If there is no such scenario (the message lists the shipped ones).
     """
     path = _scenario_dir() / f"{name}.yaml"
     if not path.is_file():
-        raise ValueError(f"unknown scenario '{name}' (shipped: {', '.join(scenario_names())})")
+        raise BadArgument(f"unknown scenario '{name}' (shipped: {', '.join(scenario_names())})")
     return path
 
 
@@ -174,8 +174,10 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
 
     Raises
     ------
-    ValueError
-        One line naming the file and the field.
+    BadInput
+        One line: an unknown scenario name (:class:`~vega_core.errors.BadArgument`), or a
+        file that is unreadable or invalid, naming the file and the field
+        (:class:`~vega_core.errors.BadFile`).
     """
     path = scenario_file(name_or_path)
     return parse_scenario(read_text(path, "scenario"), str(path), expected_name=path.stem)
@@ -213,8 +215,8 @@ class _Where:
     def __init__(self, source: str):
         self.source = source
 
-    def error(self, key: str, problem: str) -> ValueError:
-        return ValueError(f"{self.source}: field '{key}': {problem}")
+    def error(self, key: str, problem: str) -> BadFile:
+        return BadFile(f"{self.source}: field '{key}': {problem}")
 
 
 def _mapping(value: Any, key: str, where: _Where, required, optional=()) -> Mapping:
@@ -266,19 +268,13 @@ def parse_scenario(text: str, source: str = "<scenario>",
 
     Raises
     ------
-    ValueError
-        One line: ``<source>: field '<key>': <problem>``.
+    BadFile
+        One line: ``<source>: field '<key>': <problem>`` (or not valid YAML, or not a
+        mapping: :func:`vega_core.documents.parse_yaml`).
     """
     data = load_vehicle_data()   # gust defaults; the range checks use the same file
     where = _Where(source)
-    try:
-        tree = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = f" (line {mark.line + 1})" if mark is not None else ""
-        raise ValueError(f"{source}: not valid YAML{line}") from None
-    if not isinstance(tree, Mapping):
-        raise ValueError(f"{source}: top level must be a mapping")
+    tree = parse_yaml(text, source)
     _mapping(tree, "", where, _TOP_REQUIRED, _TOP_OPTIONAL)
     name = _string(tree["name"], "name", where)
     if expected_name is not None and name != expected_name:
@@ -328,7 +324,7 @@ def parse_scenario(text: str, source: str = "<scenario>",
         return Scenario(**values)
     except ValueError as exc:  # the range checks of the constructor: name the file instead
         if isinstance(exc.__cause__, _FieldError):
-            raise ValueError(f"{source}: {exc.__cause__}") from None
+            raise BadFile(f"{source}: {exc.__cause__}") from None
         raise
 
 

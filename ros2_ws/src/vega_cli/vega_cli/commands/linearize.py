@@ -11,6 +11,8 @@ import json
 import math
 import sys
 
+from vega_core.errors import BadArgument
+
 __all__ = ["register", "parse_times"]
 
 
@@ -19,26 +21,26 @@ def parse_times(text: str) -> tuple[list[float], bool]:
 
     Raises
     ------
-    ValueError
+    BadArgument
         One line naming the bad argument.
     """
     parts = text.split(":")
     try:
         values = [float(p) for p in parts]
     except ValueError:
-        raise ValueError(f"--t {text!r}: expected SECONDS or START:STOP:STEP (numbers)") from None
+        raise BadArgument(f"--t {text!r}: expected SECONDS or START:STOP:STEP (numbers)") from None
     if not all(math.isfinite(v) for v in values):
-        raise ValueError(f"--t {text!r}: times must be finite")
+        raise BadArgument(f"--t {text!r}: times must be finite")
     if len(values) == 1:
         return values, False
     if len(values) != 3:
-        raise ValueError(f"--t {text!r}: expected SECONDS or START:STOP:STEP")
+        raise BadArgument(f"--t {text!r}: expected SECONDS or START:STOP:STEP")
     start, stop, step = values
     if step <= 0 or stop < start:
-        raise ValueError(f"--t {text!r}: need STEP > 0 and STOP >= START")
+        raise BadArgument(f"--t {text!r}: need STEP > 0 and STOP >= START")
     n = int(math.floor((stop - start) / step + 1e-9)) + 1
     if n > 100000:
-        raise ValueError(f"--t {text!r}: {n} times requested (limit 100000)")
+        raise BadArgument(f"--t {text!r}: {n} times requested (limit 100000)")
     return [round(start + i * step, 12) for i in range(n)], True
 
 
@@ -67,7 +69,7 @@ def _run(args: argparse.Namespace) -> int:
     lo, hi = context.time_range_s
     for t in times:
         if not lo <= t <= hi:
-            raise ValueError(f"--t {t:g}: outside the flight-condition table ({lo:g}..{hi:g} s)")
+            raise BadArgument(f"--t {t:g}: outside the flight-condition table ({lo:g}..{hi:g} s)")
     records = [_record(t, context) for t in times]
     if args.json:
         json.dump(records if is_range else records[0], sys.stdout, separators=(",", ":"))

@@ -14,6 +14,8 @@ import argparse
 import signal
 import sys
 
+from vega_core.errors import BadArgument
+
 __all__ = ["register"]
 
 
@@ -30,7 +32,7 @@ def _run(args: argparse.Namespace) -> int:
         print(result.summary())
         return result.exit_code
     if args.table:
-        raise ValueError("--table only applies with --check-controller")
+        raise BadArgument("--table only applies with --check-controller")
     stopped = []
     previous = signal.signal(signal.SIGTERM, lambda *_: stopped.append(True))
     try:

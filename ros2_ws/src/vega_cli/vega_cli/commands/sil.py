@@ -20,6 +20,8 @@ import resource
 import sys
 import time
 
+from vega_core.errors import BadArgument
+
 from vega_bringup import rosenv
 from vega_bringup.planning import DEFAULT_OUT, DEFAULT_SCENARIO, plan_run, write_run_files
 
@@ -91,7 +93,7 @@ def _run(args):
 
 
 def _no_action(args):
-    raise ValueError("sil: an ACTION is required: run (see vega sil --help)")
+    raise BadArgument("sil: an ACTION is required: run (see vega sil --help)")
 
 
 def register(subparsers):

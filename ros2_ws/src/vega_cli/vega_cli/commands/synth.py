@@ -25,7 +25,8 @@ def _run(args: argparse.Namespace) -> int:
           + f"; total {total:.1f} s")
     if rep.frozen:
         ok = rep.certificate_dense_max < 0 and all(f["all_stable"] for f in rep.frozen.values())
-        print(f"  verification: {'PASS' if ok else 'FAIL'} (certificate {rep.certificate_dense_max:.2e}, "
+        print(f"  verification: {'PASS' if ok else 'FAIL'} "
+              f"(certificate {rep.certificate_dense_max:.2e}, "
               + ", ".join(f"{k}: worst Hinf {f['worst_hinf']:.4f}" for k, f in rep.frozen.items())
               + ")")
     print(f"  table: {rep.table}")

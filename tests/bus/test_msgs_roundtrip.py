@@ -28,7 +28,7 @@ pytestmark = pytest.mark.ros
 DISCOVERY_TIMEOUT_S = 60.0
 """Upper bound for discovery and delivery (usually well under a second; ~3 s seen)."""
 
-_PUBLISHER = Path(__file__).with_name("msg_samples.py")
+_PUBLISHER = Path(__file__).resolve().parents[1] / "msg_samples.py"
 _TOPIC_PREFIX = "/vega_test/msgs_roundtrip"
 
 

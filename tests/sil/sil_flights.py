@@ -1,4 +1,4 @@
-"""Helpers of the SIL regression tests (tests/test_sil_run_flight.py, test_sil_equivalence.py).
+"""Helpers of the SIL regression tests (tests/sil/test_sil_run_flight.py, test_sil_equivalence.py).
 
 Short scenarios written from the shipped ones, ``vega sil run`` as a real process, process
 inspection, and the canonical form of bag payloads for byte comparisons.
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import yaml
 
-from vega_bus import topics
+from vega_bus import qos, topics
 from vega_sim.scenario import scenario_path
 from vega_bags import bagio
 from vega_bringup import orchestrate, rosenv
@@ -99,7 +99,7 @@ def wait_for_sim_time(t_s, timeout_s=120.0, still_running=lambda: True):
         node.create_subscription(
             Clock, topics.CLOCK.name,
             lambda msg: latest.__setitem__(0, msg.clock.sec + 1e-9 * msg.clock.nanosec),
-            topics.clock_qos())
+            qos.clock_qos())
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
         deadline = time.monotonic() + timeout_s

@@ -1,7 +1,7 @@
 """The ``vega`` command-line skeleton: sub-command discovery, errors, ``sil`` and ``node``.
 
 Run in-process through :func:`vega_cli.cli.main` (``vega node`` only on its error paths: on
-success it replaces the process; tests/test_environment.py runs it for real).
+success it replaces the process; tests/cli/test_environment.py runs it for real).
 """
 
 import sys
@@ -10,6 +10,7 @@ import types
 import pytest
 
 from vega_cli import cli
+from vega_core.errors import BadInput
 
 
 def _fake_command_module(name, error):
@@ -57,12 +58,13 @@ def test_broken_module_reports_itself(monkeypatch, capsys):
 
 
 @pytest.mark.parametrize("error, message", [
-    (ValueError("bad input:\n  line two"), "bad input: line two"),
+    (BadInput("bad input:\n  line two"), "bad input: line two"),
     (FileNotFoundError(2, "No such file or directory", "table.yaml"),
      "[Errno 2] No such file or directory: 'table.yaml'"),
 ])
 def test_errors_print_one_line_and_exit_2(monkeypatch, capsys, error, message):
-    """ValueError and OSError from a sub-command: ``vega: error: <message>``, exit status 2."""
+    """BadInput and OSError from a sub-command: ``vega: error: <message>``, exit status 2
+    (any other exception is a defect: tests/core/test_errors.py)."""
     monkeypatch.setattr(cli, "COMMANDS", ("explode",))
     monkeypatch.setitem(sys.modules, "vega_cli.commands.explode",
                         _fake_command_module("explode", error))

@@ -155,8 +155,8 @@ def test_wind_channels(t, data):
     w = np.array([0.0, 0.1, 1.0, 10.0])
     dryden = weight_ss("wind", p, THESIS, data)
     if sigma > floor:
-        np.testing.assert_allclose(_siso(dryden, w), 3.0 * _siso(dryden_ss(p.h_m, p.v_mps, data), w),
-                                   rtol=1e-12)
+        expected = 3.0 * _siso(dryden_ss(p.h_m, p.v_mps, data), w)
+        np.testing.assert_allclose(_siso(dryden, w), expected, rtol=1e-12)
     else:                                               # above 20 km: the floor
         assert p.h_m > 20e3
         dc = 3.0 * floor * math.sqrt(2.0 * ell / (math.pi * p.v_mps))

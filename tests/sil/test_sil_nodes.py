@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from fixture_tables import write_pd_table
-from vega_bus import topics
+from vega_bus import qos, topics
 from vega_bus.barrier import PARTICIPANTS
 from vega_bus.schedule import RunInfo
 from vega_bus.timing import LoopTiming, ms_to_stamp
@@ -24,7 +24,7 @@ from vega_gnc.controller_runtime import (STATUS_HOLD_LAST, STATUS_OK, STATUS_SAF
                                          STATUS_VELOCITY_CLAMPED)
 from vega_sim.scenario import scenario_path
 from vega_bringup.executables import find_executable
-from vega_bags.recorder import seq_of, stamp_ns
+from vega_bags.recorder import RawFields
 
 EXECUTABLES = {"plant": "vega_plant", "ins_sensor": "vega_plant", "tvc_actuator": "vega_plant",
                "tvc_controller": "vega_gnc", "recorder": "vega_bags"}
@@ -135,21 +135,27 @@ def test_run_description_rejects_malformed_json():
 
 
 def test_recorder_reads_stamp_and_seq_from_cdr():
+    """The recorder's offsets (from bagio's computed layout, cached per frame_id length) read
+    the right stamp and seq of every topic, whatever the frame_id and sample counts."""
     from rclpy.serialization import serialize_message
-    from vega_msgs.msg import InsMeasurement, VehicleState
 
-    for frame_id in ("", "b", "base_link", "abc"):
-        m = InsMeasurement()
-        m.header.frame_id = frame_id
-        m.header.stamp.sec, m.header.stamp.nanosec = 12, 345_000_000
-        m.sample_stamp.sec = 99
-        m.seq = 4_000_000_001
-        data = serialize_message(m)
-        assert stamp_ns(data) == 12_345_000_000 and seq_of(data, 8) == 4_000_000_001
-        v = VehicleState()
-        v.header.frame_id = frame_id
-        v.seq = 77
-        assert seq_of(serialize_message(v), 0) == 77
+    for topic in topics.ALL_TOPICS:
+        fields = RawFields(topic.type_name)
+        cls = topics.message_class(topic.type_name)
+        for k, frame_id in enumerate(("", "b", "base_link", "abc", "", "base_link")):
+            m = cls()
+            stamp = m.clock if topic is topics.CLOCK else m.header.stamp
+            stamp.sec, stamp.nanosec = 12 + k, 345_000_000
+            if topic is not topics.CLOCK:
+                m.header.frame_id = frame_id
+                m.seq = 4_000_000_001 + k
+            if hasattr(m, "sample_stamp"):
+                m.sample_stamp.sec = 99
+            if topic is topics.ACTUATOR:
+                m.deflection_samples_rad = [0.5] * k
+            got = fields(serialize_message(m))
+            assert got == ((12 + k) * 1_000_000_000 + 345_000_000,
+                           None if topic is topics.CLOCK else 4_000_000_001 + k), topic.name
 
 
 # ----------------------------------------------------------------------------- ROS: bad input
@@ -201,16 +207,16 @@ class _Driver:
         self.node = rclpy.create_node("test_driver", context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
-        self.run = self.node.create_publisher(String, topics.RUN.name, topics.control_qos())
+        self.run = self.node.create_publisher(String, topics.RUN.name, qos.control_qos())
         self.run.publish(String(data=info.to_json()))
         self.ins = self.node.create_publisher(InsMeasurement, topics.INS.name,
-                                              topics.data_qos())
+                                              qos.data_qos())
         self.commands = []
         self.ready = set()
         self.node.create_subscription(TvcCommand, topics.TVC_CMD.name, self.commands.append,
-                                      topics.data_qos())
+                                      qos.data_qos())
         self.node.create_subscription(String, topics.READY.name,
-                                      lambda m: self.ready.add(m.data), topics.control_qos())
+                                      lambda m: self.ready.add(m.data), qos.control_qos())
         self._msg = InsMeasurement
 
     def spin_until(self, done, timeout_s=30.0):

@@ -12,7 +12,7 @@ import time
 import pytest
 
 from fixture_bags import messages_on, short_run, write_bag
-from vega_bus import topics
+from vega_bus import qos, topics
 from vega_bags import bagio, replay
 from vega_cli import cli
 
@@ -49,7 +49,7 @@ def _receive_replay(bag_path, env, argv=()):
     got = {name: [] for name in expected}
     for t in topics.ALL_TOPICS:
         node.create_subscription(topics.message_class(t.type_name), t.name,
-                                 got[t.name].append, topics.data_qos(), raw=True)
+                                 got[t.name].append, qos.data_qos(), raw=True)
     child = subprocess.Popen(
         [sys.executable, "-m", "vega_cli.cli", "replay", str(bag_path), "--rate", "0",
          "--wait-subscribers", str(DELIVERY_TIMEOUT_S), *argv],

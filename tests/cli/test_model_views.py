@@ -12,7 +12,7 @@ from vega_model.parameters import model_parameters
 from vega_cli import cli
 from vega_cli.commands.linearize import parse_times
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 REQUIRED_PARAMETERS = ("v_mps", "q_pa", "mach", "s_ref_m2", "cn_alpha_per_rad", "x_cp_m",
                        "x_cg_m", "x_pvp_m", "x_ins_m", "jyy_kgm2", "mass_kg", "thrust_n",
                        "f1_hz", "f2_hz", "zeta")

@@ -59,7 +59,7 @@ def test_recorded_gammas_and_rate_box(table, context):
     assert set(GRID_TIMES_S) <= {round(t, 6) for t in grid_times}   # the thesis' points
     np.testing.assert_allclose(table.grid_v_mps,
                                [context.parameters(t).v_mps for t in grid_times], rtol=1e-6)
-    # γ ordering (LPV_SYNTHESIS.md §5): each frozen-point LTI optimum is a lower bound of the
+    # γ ordering (docs/LPV_SYNTHESIS.md §5): each frozen-point LTI optimum is a lower bound of the
     # rate-bounded level (the box contains ρ̇ = 0), which is no worse than the quadratic one
     assert max(table.metadata["gamma_lti"]) <= table.gamma_min * (1.0 + 1e-6)
     assert table.gamma_min <= table.metadata["gamma_quadratic"]

@@ -1,4 +1,4 @@
-"""Rate-bounded LPV synthesis on a small gridded plant (LPV_SYNTHESIS.md §2–§5).
+"""Rate-bounded LPV synthesis on a small gridded plant (docs/LPV_SYNTHESIS.md §2–§5).
 
 The plant: a position loop whose stiffness a(ρ) = −1 + 0.8ρ + 0.2ρ² turns it unstable as ρ
 grows and whose control gain b(ρ) = 1 + 0.25ρ varies, with a first-order weight on position,

@@ -2,7 +2,7 @@
 
 The supervisor tests use stand-in processes (small Python programs) to exercise its own
 logic — failure detection, SIGTERM then SIGKILL, reaping, interrupt — deterministically;
-every SIL test with the real nodes is in tests/test_sil_flight.py.
+every SIL test with the real nodes is in tests/sil/test_sil_run_flight.py.
 """
 
 import os
@@ -98,7 +98,7 @@ def test_node_command_and_shell_line():
 def test_environment_script_is_the_projects():
     """The env script the dry run sources is this checkout's tools/env.bash."""
     assert orchestrate.environment_script() == (
-        Path(__file__).resolve().parent.parent / "tools" / "env.bash")
+        Path(__file__).resolve().parents[2] / "tools" / "env.bash")
 
 
 def test_default_run_id():

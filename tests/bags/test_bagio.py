@@ -11,7 +11,7 @@ import pytest
 from rclpy.serialization import serialize_message
 
 import msg_samples
-from vega_bus import topics
+from vega_bus import qos, topics
 from vega_bags import bagio
 
 TOPIC_OF = {"InsMeasurement": topics.INS.name, "TvcCommand": topics.TVC_CMD.name,
@@ -94,7 +94,7 @@ def test_metadata_and_qos_in_metadata_yaml(sample_bag):
         bagio.vega_typestore().hash_rihs01(topics.INS.type_name)
     assert by_name[topics.CLOCK.name]["message_count"] == 2
     clock_qos = by_name[topics.CLOCK.name]["topic_metadata"]["offered_qos_profiles"][0]
-    assert clock_qos["depth"] == topics.clock_qos().depth
+    assert clock_qos["depth"] == qos.clock_qos().depth
 
 
 def test_writer_closes_on_error_and_keeps_the_bag_readable(tmp_path):

@@ -13,7 +13,7 @@ from vega_model.vehicle_data import load_vehicle_data
 from vega_sim.scenario import (GustSettings, load_scenario, parse_scenario, scenario_names,
                                scenario_path)
 
-SRC = Path(__file__).resolve().parent.parent / "ros2_ws" / "src"
+SRC = Path(__file__).resolve().parents[2] / "ros2_ws" / "src"
 
 GOOD = """\
 name: demo
@@ -72,9 +72,13 @@ def test_full_file(tmp_path):
     assert s.initial_state.beta_rad == 0.001 and s.seed == 7
 
 
-def test_setup_py_installs_the_yaml_files():
-    assert "'scenarios/*.yaml'" in (SRC / "vega_sim" / "setup.py").read_text()
-    assert "'config/*.yaml'" in (SRC / "vega_sim" / "setup.py").read_text()
+def test_setup_cfg_installs_the_yaml_files():
+    import configparser
+
+    cfg = configparser.ConfigParser()
+    cfg.read(SRC / "vega_sim" / "setup.cfg")
+    globs = [g.strip() for g in cfg["options.package_data"]["vega_sim"].split(",")]
+    assert "scenarios/*.yaml" in globs and "config/*.yaml" in globs
 
 
 def _error(tmp_path, text, name="demo"):

@@ -214,7 +214,7 @@ def test_bad_caller_domain_id_is_rejected(tmp_path, value):
         assert result.stderr.count("\n") == 1
 
 
-# vega_bringup.rosenv ----------------------------------------------------------------------------------
+# vega_bringup.rosenv ---------------------------------------------------------------------
 
 def test_pick_domain_id_cycles_through_all_ids(tmp_path):
     """Round robin over 1..100: consecutive picks differ, 100 picks use every id once, and the

@@ -3,7 +3,7 @@
 Every flight runs the real command line (``python -m vega_cli.cli sil run``) or the real node
 executables, on this test run's ROS_DOMAIN_ID with LOCALHOST discovery. The flights are short
 (the thesis scenario cut to 10–14 s) except one whole thesis flight (10–90 s). Equivalence with
-the in-process simulation and determinism: tests/test_sil_equivalence.py.
+the in-process simulation and determinism: tests/sil/test_sil_equivalence.py.
 
 The controller is the hand-designed PD fixture of tests/fixture_tables.py until the
 synthesised table exists: what is asserted about the requirements is that the printed table,

@@ -1,4 +1,4 @@
-"""LTI cross-check of the LMI engine against SLICOT sb10ad (LPV_SYNTHESIS.md §5).
+"""LTI cross-check of the LMI engine against SLICOT sb10ad (docs/LPV_SYNTHESIS.md §5).
 
 One grid point with a constant Lyapunov basis is the LTI H∞ problem: its stage-1 γ must match
 python-control's ``hinfsyn`` (Riccati/γ-iteration, sb10ad), and the reconstructed controller
