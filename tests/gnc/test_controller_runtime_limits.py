@@ -168,26 +168,20 @@ def test_stale_first_measurement_is_safe_zero(gain_table):
 
 
 def test_staleness_and_hold_exactly_at_their_limits(gain_table):
-    """With limits that are exact binary fractions (no rounding in now − stamp): an age equal
-    to max_age is 'not older' → used; an invalid input exactly hold_limit after the last
-    valid one is still held; one step later it is not."""
+    """With limits that are exact binary fractions: an age equal to max_age is 'not older' →
+    used; 1 µs more is stale. An invalid input exactly hold_limit after the last valid one was
+    *used* (receive side) is still held; 1 µs later it is not (times resolve to 1 µs)."""
     limits = RuntimeLimits(max_age_s=0.03125, hold_limit_s=0.25)
     rt = ControllerRuntime(gain_table, limits)
-    assert rt.step(_m(2.0, 0.125), now_s=2.03125).status == STATUS_OK
-    late = rt.step(_m(2.0625, 0.125), now_s=2.0625 + 0.03125 + 2.0 ** -20)
+    assert rt.step(_m(2.0, 0.125), now_s=2.03125).status == STATUS_OK      # used at 2.03125
+    late = rt.step(_m(2.0625, 0.125), now_s=2.0625 + 0.03125 + 1e-6)
     assert late.status == STATUS_HOLD_LAST
-    held = rt.step(_m(2.25, 0.125, valid=False))
+    held = rt.step(_m(2.28125, 0.125, valid=False))                        # 2.03125 + 0.25
     assert held.status == STATUS_HOLD_LAST and held.deflection_cmd_rad == 0.0625
-    gone = rt.step(_m(2.25 + 2.0 ** -20, 0.125, valid=False))
+    gone = rt.step(_m(2.28125 + 1e-6, 0.125, valid=False))
     assert gone.status == STATUS_SAFE_ZERO and gone.deflection_cmd_rad == 0.0
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "boundary defect: the age is a difference of float seconds (now_s - m.stamp_s), so on the "
-    "ms grid a measurement exactly 32 ms old evaluates to 0.032000000000000x > 0.032 and is "
-    "called stale for about half of all flight times, although the rule is 'not older than "
-    "max_age_s' (ros2_ws/src/vega_gnc/vega_gnc/controller_runtime.py:157; compare in integer "
-    "ms/ns or with a tolerance)"))
 def test_age_of_exactly_max_age_on_the_ms_grid_is_fresh_at_every_flight_time(gain_table):
     verdicts = set()
     for sample_ms in range(10_000, 12_000, 20):
@@ -197,12 +191,6 @@ def test_age_of_exactly_max_age_on_the_ms_grid_is_fresh_at_every_flight_time(gai
     assert verdicts == {STATUS_OK}
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "boundary defect: the hold time is a difference of float seconds "
-    "(now_s - self._last_valid_stamp), so on the ms grid an invalid input exactly 200 ms after "
-    "the last valid one is held at some flight times and zeroed at others, although the rule "
-    "is 'invalid for longer than hold_limit_s' "
-    "(ros2_ws/src/vega_gnc/vega_gnc/controller_runtime.py:161-162)"))
 def test_hold_of_exactly_hold_limit_on_the_ms_grid_is_held_at_every_flight_time(gain_table):
     verdicts = set()
     for sample_ms in range(10_000, 12_000, 20):
@@ -276,12 +264,6 @@ def flight_table():
     return load_controller_table(DEFAULT_TABLE)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 11 item 1: with the flight table, one finite measurement of ±1.7e308 (pitch or pitch "
-    "rate) overflows S @ [x; y] to inf (LIMITED that step), the state becomes inf and every "
-    "later step computes NaN, which goes out with STATUS_OK for good: no finiteness check on "
-    "the product, the state or the output, and abs(nan) > limit is False "
-    "(ros2_ws/src/vega_gnc/vega_gnc/controller_runtime.py:172-179, ControllerRuntime._step)"))
 @pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")
 @pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning")
 @pytest.mark.parametrize("field", [0, 1])
@@ -299,20 +281,15 @@ def test_huge_finite_measurement_never_gives_nan_with_status_ok(flight_table, hu
 
 
 def test_huge_measurement_with_small_gains_stays_finite(dyn_table):
-    """Control case of the defect above (passes today): with gains below 1 nothing overflows;
-    the command saturates (LIMITED) but is finite and the state finite."""
+    """A finite but implausible measurement (|pitch| > π) is not used: the last command is
+    held, the state stays finite."""
     rt = ControllerRuntime(dyn_table)
     cmds = [rt.step(Measurement(0.0, 0.01, 0.0, 0.0, 0.0, 250.0)),
             rt.step(Measurement(0.02, 1.7e308, 0.0, 0.0, 0.0, 250.0))]
-    assert cmds[1].status == STATUS_LIMITED and _finite_within_limits(cmds)
+    assert cmds[1].status == STATUS_HOLD_LAST and _finite_within_limits(cmds)
     assert np.all(np.isfinite(rt.state))
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 11 item 1: the hold limit is measured from the sender's stamp, not on the receive "
-    "side; a valid measurement stamped 1 s in the future is accepted (now − stamp < 0 ≤ "
-    "max_age, no check for future stamps) and keeps the last command held for 1.2 s instead "
-    "of 0.2 s (ros2_ws/src/vega_gnc/vega_gnc/controller_runtime.py:157 and 161-162, 179)"))
 def test_future_stamp_cannot_extend_the_hold(gain_table):
     rt = ControllerRuntime(gain_table)
     rt.step(_m(10.0, 0.02), now_s=10.012)
@@ -408,3 +385,34 @@ def test_rate_slice_interpolation_by_hand(rate_table, rate, s):
     assert second.deflection_cmd_rad == pytest.approx(
         (mats["Cd"] @ x1 + mats["Dd"] @ (-y)).item(), rel=1e-12)
     np.testing.assert_allclose(rt.state, mats["Ad"] @ x1 + mats["Bd"] @ (-y), rtol=1e-12)
+
+
+def test_hold_runs_from_when_the_last_measurement_was_used(gain_table):
+    """The hold limit counts from the receive time of the last measurement used, not from its
+    stamp: a measurement stamped 10.000 s and used at 10.032 s (32 ms old, still fresh) holds
+    until 10.232 s; at 10.220 s (220 ms after its stamp) the command is still held."""
+    rt = ControllerRuntime(gain_table)
+    used = rt.step(_m(10.0, 0.02), now_s=10.032)
+    assert used.status == STATUS_OK
+    cmd = rt.step(_m(10.2, 0.02, valid=False), now_s=10.220)
+    assert cmd.status == STATUS_HOLD_LAST and cmd.deflection_cmd_rad == used.deflection_cmd_rad
+    cmd = rt.step(_m(10.24, 0.02, valid=False), now_s=10.240)
+    assert cmd.status == STATUS_SAFE_ZERO and cmd.deflection_cmd_rad == 0.0
+
+
+def test_a_future_stamp_does_not_block_the_measurements_after_it(gain_table):
+    """A measurement stamped in the future is refused and does not become the 'latest stamp':
+    the next ordinary measurement is used (one forged stamp cannot silence the INS)."""
+    rt = ControllerRuntime(gain_table)
+    assert rt.step(_m(10.0, 0.02), now_s=10.012).status == STATUS_OK
+    assert rt.step(_m(99.0, 0.02), now_s=10.032).status == STATUS_HOLD_LAST
+    assert rt.step(_m(10.04, 0.02), now_s=10.052).status == STATUS_OK
+
+
+def test_a_repeated_stamp_is_refused_even_after_a_safe_zero(gain_table):
+    """Found by the property test: the newest stamp survives the reset of a SAFE_ZERO, so a
+    message repeated after it is not used."""
+    rt = ControllerRuntime(gain_table)
+    assert rt.step(_m(10.02, 0.02, valid=False)).status == STATUS_SAFE_ZERO
+    assert rt.step(_m(10.02, 0.02)).status == STATUS_SAFE_ZERO     # same stamp again
+    assert rt.step(_m(10.04, 0.02)).status == STATUS_OK

@@ -3,20 +3,29 @@
 Plain Python, no ROS: the ``tvc_controller`` node and the offline verification run this same
 code. Per step (at the controller rate, thesis §4.3.2 "affine interpolation"):
 
-1. validate the measurement (finite fields, ``valid`` flag, stamp strictly later than the
-   previous one and not older than ``max_age_s`` at the time of use);
+1. validate the measurement: ``valid`` flag; every field finite and within its plausibility
+   bound (:class:`RuntimeLimits`: values no flying launcher can have, so that a corrupted
+   value can neither overflow the controller state nor pin the command); stamp strictly later
+   than the previous one, not in the future and not older than ``max_age_s`` at the time of
+   use (times compared in whole microseconds, so that a limit on the millisecond grid holds
+   exactly);
 2. schedule on the measured velocity: the discrete controller matrices are interpolated
    linearly in velocity between grid points (clamped at the grid ends, flagged);
 3. ``u = Cd x + Dd y``, ``x ← Ad x + Bd y`` with ``y = sign · measurements`` in the table's
    input order (sign −1: the controller input is reference − measurement, references 0);
-4. limit the command to the actuator range (flagged).
+4. check that the new state and the command are finite; limit the command to the actuator
+   range (flagged).
 
 Defined safe behaviour (never an exception in the loop):
 
-* an invalid or stale measurement → the last command is held and the controller state is
-  frozen (``STATUS_HOLD_LAST``);
-* no valid measurement yet, or invalid for longer than ``hold_limit_s`` → command 0 and the
-  controller state reset (``STATUS_SAFE_ZERO``); a later valid measurement restarts it;
+* an invalid, implausible, stale or future-stamped measurement → the last command is held and
+  the controller state is frozen (``STATUS_HOLD_LAST``);
+* no valid measurement yet, or none for longer than ``hold_limit_s`` → command 0 and the
+  controller state reset (``STATUS_SAFE_ZERO``); a later valid measurement restarts it. The
+  hold runs on the receive side (from the time the last valid measurement was *used*), so no
+  stamp can extend it;
+* a non-finite state or command (only possible with a table whose gains overflow the state) →
+  the state is reset, command 0 (``STATUS_SAFE_ZERO``);
 * velocity outside the grid → matrices clamped to the end point (``STATUS_VELOCITY_CLAMPED``);
 * command beyond ±``limit_rad`` → saturated (``STATUS_LIMITED``).
 Status values are the constants of ``vega_msgs/TvcCommand`` (taken from the message class);
@@ -78,11 +87,30 @@ class RuntimeLimits:
     older than this when used is stale (assumption: 2 INS periods + the 12 ms sensor latency);
     hold_limit_s: how long a held command is trusted before going to zero (assumption: 0.2 s,
     ≈ 1/5 of the aerodynamic divergence time constant at max-Q).
+
+    Plausibility bounds of the measurement (assumption: values no flying launcher can have; a
+    measurement beyond one is a sensor or transport fault and is not used):
+    max_abs_pitch_rad = π (an attitude perturbation beyond ±180° has no meaning);
+    max_abs_pitch_rate_radps = 10 rad/s (≈ 570°/s; VEGA's attitude dynamics are below 1 rad/s);
+    max_abs_drift_m = 1e5 m (100 km: more than the whole first-stage ascent's downrange);
+    max_abs_drift_rate_mps = 1e4 m/s and max_velocity_mps = 1e4 m/s (more than 5× the
+    first-stage burn-out velocity, ≈ 1.9 km/s, docs/TRAJECTORY.md; a small negative measured
+    velocity at lift-off is INS noise, not a fault).
     """
 
     limit_rad: float = math.radians(6.5)
     max_age_s: float = 0.032
     hold_limit_s: float = 0.2
+    max_abs_pitch_rad: float = math.pi
+    max_abs_pitch_rate_radps: float = 10.0
+    max_abs_drift_m: float = 1e5
+    max_abs_drift_rate_mps: float = 1e4
+    max_velocity_mps: float = 1e4
+
+
+def _us(t_s: float) -> int:
+    """``t_s`` in whole microseconds (stamps and limits are on the millisecond grid)."""
+    return round(t_s * 1e6)
 
 
 class ControllerRuntime:
@@ -94,6 +122,13 @@ class ControllerRuntime:
         self.limits = limits
         self._sign = float(table.measurement_sign)
         self._getters = tuple(_FIELDS[name] for name in table.input_names)
+        bounds = {"pitch_rad": limits.max_abs_pitch_rad,
+                  "pitch_rate_radps": limits.max_abs_pitch_rate_radps,
+                  "drift_m": limits.max_abs_drift_m,
+                  "drift_rate_mps": limits.max_abs_drift_rate_mps}
+        self._bounds = tuple(bounds[name] for name in self._getters)
+        self._max_age_us = _us(limits.max_age_s)
+        self._hold_us = _us(limits.hold_limit_s)
         n, ny = table.n_states, len(table.input_names)
         # One stacked matrix per grid point, S = [[Ad, Bd], [Cd, Dd]], and its increments to
         # the next point, so that a step is one axpy and one mat-vec product.
@@ -113,13 +148,13 @@ class ControllerRuntime:
         self._n, self._ny = n, ny
         self._xy = np.zeros(n + ny)
         self._work = np.empty_like(self._S[0])
-        self.reset()
+        self._last_stamp_us = None      # newest stamp seen: kept across resets, so that a
+        self.reset()                    # repeated or older message is never used
 
     def reset(self) -> None:
         """Zero the controller state; the next valid measurement starts it."""
         self._xy[:] = 0.0
-        self._last_stamp = -math.inf
-        self._last_valid_stamp = None
+        self._last_valid_us = None      # receive time of the last measurement used
         self._last_command = 0.0
 
     @property
@@ -149,33 +184,48 @@ class ControllerRuntime:
             self.reset()
             return Command(0.0, float("nan"), STATUS_SAFE_ZERO)
 
+    def _plausible(self, values, v: float) -> bool:
+        """Every used field and the velocity finite and within their bounds."""
+        for x, bound in zip(values, self._bounds):
+            if not abs(x) <= bound:         # False for NaN too
+                return False
+        return abs(v) <= self.limits.max_velocity_mps
+
     def _step(self, m: Measurement, now_s: float) -> Command:
+        now_us = _us(now_s)                 # ValueError/OverflowError for a non-finite now_s
         values = [getattr(m, name) for name in self._getters]
         v = m.velocity_mps
-        ok = (bool(m.valid) and all(math.isfinite(x) for x in values) and math.isfinite(v)
-              and math.isfinite(m.stamp_s) and m.stamp_s > self._last_stamp
-              and now_s - m.stamp_s <= self.limits.max_age_s)
-        if math.isfinite(m.stamp_s) and m.stamp_s > self._last_stamp:
-            self._last_stamp = m.stamp_s
+        stamp_us = _us(m.stamp_s) if math.isfinite(m.stamp_s) else None
+        newer = stamp_us is not None and (self._last_stamp_us is None
+                                          or stamp_us > self._last_stamp_us)
+        ok = (bool(m.valid) and newer and 0 <= now_us - stamp_us <= self._max_age_us
+              and self._plausible(values, v))
+        if newer and stamp_us <= now_us:
+            self._last_stamp_us = stamp_us
+        v_report = v if math.isfinite(v) else float("nan")
         if not ok:
-            held = self._last_valid_stamp is not None and (
-                now_s - self._last_valid_stamp <= self.limits.hold_limit_s)
-            if held:
-                return Command(self._last_command, v if math.isfinite(v) else float("nan"),
-                               STATUS_HOLD_LAST)
-            self.reset()
-            return Command(0.0, v if math.isfinite(v) else float("nan"), STATUS_SAFE_ZERO)
+            return self._hold_or_zero(now_us, v_report)
         S, v_sched, status = self._schedule(v)
         n = self._n
         self._xy[n:] = values
         self._xy[n:] *= self._sign
         out = S @ self._xy
         u = float(out[n])
+        if not (math.isfinite(u) and np.isfinite(out).all()):
+            self.reset()                    # a table whose gains overflow: never emit it
+            return Command(0.0, v_sched, STATUS_SAFE_ZERO)
         self._xy[:n] = out[:n]
         lim = self.limits.limit_rad
         if abs(u) > lim:
             u = math.copysign(lim, u)
             status = max(status, STATUS_LIMITED, key=_SEVERITY.__getitem__)
-        self._last_valid_stamp = m.stamp_s
+        self._last_valid_us = now_us
         self._last_command = u
         return Command(u, v_sched, status)
+
+    def _hold_or_zero(self, now_us: int, v_report: float) -> Command:
+        """The last command while the hold limit allows (receive side), else zero and reset."""
+        if self._last_valid_us is not None and now_us - self._last_valid_us <= self._hold_us:
+            return Command(self._last_command, v_report, STATUS_HOLD_LAST)
+        self.reset()
+        return Command(0.0, v_report, STATUS_SAFE_ZERO)

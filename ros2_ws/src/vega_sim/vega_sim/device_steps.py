@@ -26,12 +26,13 @@ The records live in :mod:`vega_bus.records` (``ActuatorOut`` is re-exported here
 from __future__ import annotations
 
 import bisect
+import math
 
 from vega_bus.records import ActuatorOut, InsOut, TruthOut
 from vega_bus.timing import LoopTiming, check_ms
 
 from vega_model.actuator import ActuatorParams, TvcActuator
-from vega_model.ins import InsParams, InsSensor
+from vega_model.ins import InsParams, InsSample, InsSensor
 from vega_model.parameters import ModelParameters
 
 __all__ = ["ActuatorOut", "InsStep", "ActuatorStep"]
@@ -69,9 +70,14 @@ class InsStep:
         model_params
             Model parameters at the sample time (INS lever arm and mode shapes).
         """
-        s = self._sensor.measure(truth.state, model_params, truth.velocity_mps)
+        state = truth.state
+        if all(math.isfinite(x) for x in state) and math.isfinite(truth.velocity_mps):
+            s = self._sensor.measure(state, model_params, truth.velocity_mps)
+        else:                                        # a diverged truth: no measurement
+            s = InsSample(*(math.nan,) * 5)
+        valid = all(math.isfinite(x) for x in s)     # never a non-finite sample marked valid
         out = InsOut(truth.stamp_ms + self._latency_ms, truth.stamp_ms, self._seq,
-                     s.theta_rad, s.theta_dot_radps, s.z_m, s.z_dot_mps, s.velocity_mps, True)
+                     s.theta_rad, s.theta_dot_radps, s.z_m, s.z_dot_mps, s.velocity_mps, valid)
         self._seq += 1
         return out
 
