@@ -156,13 +156,21 @@ def main(argv):
     if len(argv) != 1:
         print("usage: msg_samples.py TOPIC_PREFIX", file=sys.stderr)
         return 2
+    import signal
+
     import rclpy
-    from rclpy.executors import ExternalShutdownException
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from rclpy.signals import SignalHandlerOptions
 
     qos = QoSProfile(depth=QOS_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    rclpy.init()
+    # A stop is a flag the loop polls, not rclpy's handler: rclpy's shuts the context down
+    # under a running spin_once, which then raises RCLError "context is not valid" (a race
+    # seen under load), as vega_bus.shell does for the nodes.
+    stop = []
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda s, _f: stop.append(s))
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("vega_msg_samples")
     try:
         for type_name in TYPE_NAMES:
@@ -170,10 +178,8 @@ def main(argv):
                 message_class(type_name), topic_name(argv[0], type_name), qos)
             publisher.publish(to_ros(type_name))
         print("published", flush=True)
-        while rclpy.ok():
-            rclpy.spin_once(node, timeout_sec=0.5)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        while not stop:
+            rclpy.spin_once(node, timeout_sec=0.1)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
