@@ -16,7 +16,7 @@ from fixture_bags import messages_on, short_run, write_bag
 from vega_bus import topics
 from vega_bags import bagcheck, bagio
 from vega_cli import cli
-from vega_sim.requirements import REQUIREMENT_KEYS, default_requirements_path
+from vega_sim.requirements import REQUIREMENT_KEYS, default_requirements_path, load_requirements
 
 MS = 1_000_000  # ns
 
@@ -89,6 +89,22 @@ def test_json_holds_the_same_verdict(good_bag, tmp_path, capsys):
     assert drift["bound"] == 500.0 and math.isclose(drift["margin"], 500.0 - abs(drift["value"]))
     assert f"{drift['value']:.6g} m" in out
     assert verdict["metadata"][bagio.META_SCENARIO] == "thesis"
+    # the Qα row: the worst-margin sample and, beside it, the largest |Qα| (issue 11 item 8)
+    check = bagcheck.check_bag(good_bag)
+    qa = check.result.q_alpha_pa_rad
+    row = next(r for r in verdict["requirements"] if r["key"] == "q_alpha")
+    k = int(np.argmax(np.abs(qa)))
+    assert (row["peak_value"], row["peak_time_s"]) == (qa[k], check.result.t_s[k])
+    assert row["gating"] is True and row["peak_value_display"] == math.degrees(qa[k])
+    line = next(x for x in out.splitlines() if x.startswith("Load performance"))
+    assert f"{abs(math.degrees(qa[k])):.6g} Pa*deg at {check.result.t_s[k]:.3f} s" in line
+    # the informational 3°·Q line: printed, in the JSON, never gating
+    (info,) = verdict["informational"]
+    assert info["key"] == "q_alpha_objective" and info["gating"] is False
+    assert any(x.startswith("Load objective") and "info: " in x for x in out.splitlines())
+    sensitivity = verdict["q_alpha_sensitivity"]
+    assert sensitivity["alpha_max_deg"] == 4.0 and sensitivity["passed"] is True
+    assert sensitivity["alpha_flip_deg"] <= 4.0 and "Qα sensitivity" in out
 
 
 # ----------------------------------------------------------------------------- requirement failures
@@ -122,6 +138,39 @@ def test_actuator_angle_not_command_is_checked(run, tmp_path):
     check = _check(tmp_path, run, mutate)
     assert _failed(check) == {"deflection"}
     assert math.isclose(check.requirements["deflection"].value, math.radians(7.0))
+
+
+def test_strict_bound_reached_names_no_minus_zero(run, tmp_path, capsys):
+    """An actuator sample exactly at the 6.5° stop fails the strict bound and says so, without
+    an excess of "-0" (issue 11 item 8)."""
+    stop = load_requirements().deflection_rad
+
+    def mutate(messages):
+        i = messages_on(messages, topics.ACTUATOR.name)[100]
+        samples = list(messages[i][2].deflection_samples_rad)
+        samples[3] = stop
+        messages[i][2].deflection_samples_rad = samples
+    check = _check(tmp_path, run, mutate)
+    assert _failed(check) == {"deflection"}
+    (line,) = check.failures
+    assert line.endswith("reaches its bound 6.5 deg (the bound is strict)"), line
+    assert "-0" not in line
+
+
+def test_informational_line_does_not_change_the_verdict(run, tmp_path, capsys):
+    """An objective table far below the run's Qα: the line says "info: no", the verdict stays
+    PASS and the exit status 0."""
+    import yaml
+
+    tree = yaml.safe_load(default_requirements_path().read_text())
+    tree["q_alpha_objective"]["value"] = [v / 100.0 for v in tree["q_alpha_objective"]["value"]]
+    req = tmp_path / "req.yaml"
+    req.write_text(yaml.safe_dump(tree))
+    bag = write_bag(tmp_path / "bag", run)
+    status, out, _ = _vega(["check", str(bag), "--requirements", str(req)], capsys)
+    assert status == 0 and "verdict: PASS" in out
+    line = next(x for x in out.splitlines() if x.startswith("Load objective"))
+    assert "info: no" in line
 
 
 def test_q_alpha_envelope_over_mach(run, tmp_path, capsys):

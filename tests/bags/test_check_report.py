@@ -31,9 +31,15 @@ def test_report_of_a_good_run(run, tmp_path):
     assert "**Verdict: PASS**" in md
     # the ∫|β|dt row stays one table row: its pipes are escaped
     row = next(line for line in md.splitlines() if "∫" in line and line.startswith("|"))
-    assert "∫\\|β\\|dt" in row and row.count(" | ") == 7
+    assert "∫\\|β\\|dt" in row and row.count(" | ") == 8
     for name in report.PLOTS:
         assert f"]({name})" in md
+    # Qα: worst-margin sample and max |Qα| in one row; the 3° objective as an info line
+    q = check.requirements["q_alpha"]
+    row = next(line for line in md.splitlines() if line.startswith("| Load performance |"))
+    assert f"{abs(q.peak_value) * q.display_scale:.6g} Pa*deg at {q.peak_time_s:.3f} s" in row
+    row = next(line for line in md.splitlines() if line.startswith("| Load objective"))
+    assert "| info: " in row and "Qα sensitivity" in md
 
 
 def test_report_names_the_failure(run, tmp_path, capsys):
