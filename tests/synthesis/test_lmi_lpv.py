@@ -8,15 +8,14 @@ the closed-loop certificate at the grid points, at a 4× denser grid and at each
 the affine ρ̇-dependence of the controller, and the input validation.
 """
 
+import control
 import numpy as np
 import pytest
+import cvxpy  # noqa: F401 - pinned dependency: a broken install fails, never skips
 
-control = pytest.importorskip("control")
-pytest.importorskip("cvxpy")
-
-from offline_synthesis.certificate import certificate_check, closed_loop, hinf_norm  # noqa: E402
-from offline_synthesis.gridded_plant import GriddedPlant, PlantPoint  # noqa: E402
-from offline_synthesis.lpv_synthesis import synthesize  # noqa: E402
+from offline_synthesis.certificate import certificate_check, closed_loop, hinf_norm
+from offline_synthesis.gridded_plant import GriddedPlant, PlantPoint
+from offline_synthesis.lpv_synthesis import synthesize
 
 RHO = np.linspace(1.0, 3.0, 5)
 RATES = (-0.5, 0.5)

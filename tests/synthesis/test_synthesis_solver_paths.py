@@ -8,16 +8,15 @@
   certificates negative.
 """
 
+import cvxpy as cp
 import numpy as np
 import pytest
 
-cp = pytest.importorskip("cvxpy")
+from offline_synthesis.gridded_plant import GriddedPlant
+from offline_synthesis.lpv_synthesis import IPM, synthesize
+from offline_synthesis.sdp_ipm import solve_conic
 
-from offline_synthesis.gridded_plant import GriddedPlant  # noqa: E402
-from offline_synthesis.lpv_synthesis import IPM, synthesize  # noqa: E402
-from offline_synthesis.sdp_ipm import solve_conic  # noqa: E402
-
-from test_lmi_lpv import RATES, RHO, plant_at  # noqa: E402
+from test_lmi_lpv import RATES, RHO, plant_at
 
 
 @pytest.fixture(scope="module")
