@@ -1,4 +1,5 @@
-"""The contract of the VEGA TVC node graph, shared by vega_plant, vega_gnc and vega_sil.
+"""The contract of the VEGA TVC node graph, shared by the truth-side nodes (vega_plant), the flight
+side (vega_gnc), the simulation (vega_sim), the bags (vega_bags) and the bring-up (vega_bringup).
 
 Modules: :mod:`~vega_bus.topics` (names, types, QoS), :mod:`~vega_bus.timing` (loop timing,
 ms stamps, the time units ``NS_PER_MS``/``NS_PER_S``), :mod:`~vega_bus.records` (one plain

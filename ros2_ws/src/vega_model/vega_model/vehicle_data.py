@@ -144,7 +144,7 @@ _TRAJECTORY_FIELDS: dict[str, tuple[str, str]] = {
     "mass.propellant_burnt_kg": ("kg", "vector"),
     "mass.x_cg_m": ("m", "vector"),
     "mass.jyy_kgm2": ("kg*m^2", "vector"),
-    # --- aerodynamics (vega_plant/aero.py) ---
+    # --- aerodynamics (vega_model/aero.py) ---
     "aerodynamics.axial.mach": ("1", "vector"),
     "aerodynamics.axial.c_a": ("1", "vector"),
     "aerodynamics.normal.mach": ("1", "vector"),
