@@ -15,9 +15,14 @@ import json
 import os
 import re
 import signal
+import struct
 import subprocess
+import sys
+import time
+from pathlib import Path
 
 import pytest
+from rosbags.rosbag2 import Reader
 
 from fixture_tables import write_pd_table
 from sil_flights import (alive, children_of, flight_env, run_layout_in, start_vega_sil_run,
@@ -175,6 +180,91 @@ def test_node_death_or_interrupt_stops_everything(tmp_path, short_scenario, pd_t
     assert not any(alive(pid) for pid in nodes)
     bag = bagio.read_run_bag(run_layout_in(tmp_path).bag_dir)
     assert 0 < len(bag[topics.TRUTH.name]) < SHORT_FRAMES
+
+
+def _process_state(pid):
+    """The state letter of process ``pid`` (``T``: stopped), or None once it is gone."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return None
+
+
+_MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+
+def _mcap_summary_start(path):
+    """``summary_start`` of an MCAP file's footer (0: no summary); AssertionError if the file
+    does not end with a footer (a writer killed before closing it)."""
+    tail = Path(path).read_bytes()[-(len(_MCAP_MAGIC) + 29):]
+    assert tail.endswith(_MCAP_MAGIC) and tail[0] == 0x02, f"{path}: no MCAP footer"
+    length, summary_start = struct.unpack_from("<QQ", tail, 1)
+    assert length == 20
+    return summary_start
+
+
+def _wait_until(condition, timeout_s):
+    """Poll ``condition()`` until it is true or ``timeout_s`` passes; its last value."""
+    deadline = time.monotonic() + timeout_s
+    while not condition() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return condition()
+
+
+def test_stopped_recorder_still_closes_its_bag(tmp_path, short_scenario, pd_table):
+    """The recorder stopped mid-flight (SIGSTOP: a debugger, job control), then the run is
+    stopped (SIGTERM to ``vega sil run``): the supervisor resumes it (SIGCONT) before its
+    SIGTERM, so the recorder closes its bag instead of being killed (SIGKILL) with it open.
+    No process is left; the bag has its MCAP summary and metadata.yaml and holds the flight
+    up to where the recorder stopped; ``vega check`` reads it and finds the run incomplete
+    (coverage), its metadata complete."""
+    proc = start_vega_sil_run(["--scenario", short_scenario, "--table", pd_table,
+                               "--out", tmp_path, "--realtime"])
+    recorder = None
+    try:
+        stderr = []
+        for line in proc.stderr:
+            stderr.append(line)
+            if "start barrier complete" in line:
+                break
+        nodes = children_of(proc.pid)
+        assert len(nodes) == len(orchestrate.PARTICIPANTS), "".join(stderr)
+        (recorder,) = [p for p, argv in nodes.items() if argv[1].endswith("/recorder")]
+        assert wait_for_sim_time(12.0, still_running=lambda: proc.poll() is None)
+        os.kill(recorder, signal.SIGSTOP)
+        assert _wait_until(lambda: _process_state(recorder) == "T", 10.0)
+        proc.send_signal(signal.SIGTERM)
+        rest = proc.communicate(timeout=120)[1]
+    finally:
+        if recorder is not None and alive(recorder):
+            os.kill(recorder, signal.SIGCONT)
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    err = "".join(stderr) + rest
+    assert proc.returncode == 130, err
+    assert "interrupted (SIGTERM): stopped every node" in err
+    assert not any(alive(pid) for pid in nodes)
+    layout = run_layout_in(tmp_path)
+    # closed, not killed (an MCAP without footer and no metadata.yaml): summary and metadata
+    assert (layout.bag_dir / "metadata.yaml").is_file(), sorted(layout.bag_dir.iterdir())
+    (mcap_file,) = layout.bag_dir.glob("*.mcap")
+    assert _mcap_summary_start(mcap_file) > 0
+    with Reader(layout.bag_dir) as reader:
+        assert reader.message_count > 0
+        assert reader.message_count == sum(1 for _ in reader.messages())
+    truth = len(bagio.read_run_bag(layout.bag_dir)[topics.TRUTH.name])
+    assert 0 < truth < SHORT_FRAMES
+    verdict = tmp_path / "verdict.json"
+    check = subprocess.run([sys.executable, "-m", "vega_cli.cli", "check", layout.bag_dir,
+                            "--json", verdict], capture_output=True, text=True, timeout=300,
+                           check=False)
+    assert check.returncode == 1, check.stdout + check.stderr
+    health = {h["key"]: h for h in json.loads(verdict.read_text())["health"]}
+    assert health["metadata"]["passed"], health["metadata"]
+    assert not health["coverage"]["passed"]
+    assert (f"{topics.TRUTH.name}: {truth} messages, a complete run has {SHORT_FRAMES}"
+            in health["coverage"]["detail"]), health["coverage"]
 
 
 def test_malformed_table_in_the_node_names_it(tmp_path, short_scenario):

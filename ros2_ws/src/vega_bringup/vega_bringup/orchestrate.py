@@ -10,10 +10,12 @@
   the environment of :func:`vega_bringup.rosenv.ros_environment` with one ROS_DOMAIN_ID for the
   whole run, output to a log file per node), watches the start barrier on ``/vega/ready``
   (:class:`ReadyWatcher`), waits for the flight to end, and stops everything on a failure or
-  an interrupt: SIGTERM to every process group still running, SIGKILL after
+  an interrupt: SIGCONT then SIGTERM to every process group still running, SIGKILL after
   :data:`TERM_GRACE_S`. The recorder closes its bag on SIGTERM, so a stopped run keeps a
-  readable bag. If a node was killed by a signal, the shared-memory files it could not remove
-  are cleaned (:func:`clean_shared_memory`).
+  readable bag (SIGCONT first: a stopped node — SIGSTOP from a debugger or job control —
+  resumes and handles SIGTERM instead of being killed with its bag open). If a node was
+  killed by a signal, the shared-memory files it could not remove are cleaned
+  (:func:`clean_shared_memory`).
 
 A node's exit status follows the contract of the node executables: 0 = the run ended
 normally (after the scenario's t_end), 1 = run failure (sequence gap, lockstep stall, barrier
@@ -601,22 +603,27 @@ class Supervisor:
 
     # -- stopping
     def stop(self, grace_s: float | None = None):
-        """Stop every node still running: SIGTERM, then SIGKILL after ``grace_s`` (default
-        :data:`TERM_GRACE_S`); reap all.
+        """Stop every node still running: SIGCONT and SIGTERM, then SIGKILL after ``grace_s``
+        (default :data:`TERM_GRACE_S`); reap all.
 
-        Signals go to each node's process group while its leader is not yet reaped (so the
-        group id cannot have been reused).
+        SIGCONT comes first so that a stopped node (SIGSTOP: a debugger, job control) resumes
+        and handles SIGTERM — the recorder then closes its bag — instead of sitting out the
+        grace time and being killed; to a running node it does nothing. Signals go to each
+        node's process group while its leader is not yet reaped (so the group id cannot have
+        been reused).
         """
         grace_s = TERM_GRACE_S if grace_s is None else grace_s
-        for sig, wait_s in ((signal.SIGTERM, grace_s), (signal.SIGKILL, grace_s)):
+        for sigs, wait_s in (((signal.SIGCONT, signal.SIGTERM), grace_s),
+                             ((signal.SIGKILL,), grace_s)):
             running = self._running()
             if not running:
                 break
             for process in running:
-                try:
-                    os.killpg(process.popen.pid, sig)
-                except (ProcessLookupError, PermissionError):
-                    pass
+                for sig in sigs:
+                    try:
+                        os.killpg(process.popen.pid, sig)
+                    except (ProcessLookupError, PermissionError):
+                        break
             deadline = time.monotonic() + wait_s
             while self._running() and time.monotonic() < deadline:
                 self._wait_any(deadline - time.monotonic())
