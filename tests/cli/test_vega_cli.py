@@ -85,6 +85,42 @@ def test_unknown_command_is_a_usage_error():
     assert exit_info.value.code == 2
 
 
+@pytest.mark.parametrize("argv, line", [
+    (["no-such-command"], "vega: error: argument COMMAND: invalid choice: 'no-such-command' "),
+    (["--no-such-option"], "vega: error: unrecognized arguments: --no-such-option "
+                           "(see vega --help)"),
+    (["sil", "run", "--seed"], "vega: error: sil run: argument --seed: expected one argument "
+                               "(see vega sil run --help)"),
+    (["sil", "run", "--scenario"], "vega: error: sil run: argument --scenario: expected one "
+                                   "argument (see vega sil run --help)"),
+    (["sil", "run", "--bogus"], "vega: error: unrecognized arguments: --bogus"),
+    (["plots"], "vega: error: plots: the following arguments are required: VIEW "
+                "(see vega plots --help)"),
+    (["replay", ".", "--rate", "-1"], "vega: error: replay: argument --rate: '-1': must be a "
+                                      "finite number >= 0"),
+])
+def test_argparse_errors_are_one_line_without_the_usage_block(capsys, argv, line):
+    """Every level of the parser (``vega``, ``vega sil``, ``vega sil run``, ...): one line
+    ``vega: error: …`` on stderr, exit status 2, no ``usage:`` block."""
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(argv)
+    assert exit_info.value.code == 2
+    captured = capsys.readouterr()
+    assert captured.err.startswith(line), captured.err
+    assert captured.err.count("\n") == 1 and "usage:" not in captured.err
+    assert captured.out == ""
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["sil", "--help"], ["sil", "run", "--help"],
+                                  ["plots", "model", "--help"]])
+def test_help_still_prints_the_full_help(capsys, argv):
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(argv)
+    assert exit_info.value.code == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"usage: vega {' '.join(argv[:-1])}".rstrip()) and "options:" in out
+
+
 def test_node_unknown_package(capsys):
     """``vega node`` with a package missing from the ament index: one-line error, exit 2."""
     assert cli.main(["node", "no_such_package", "talker"]) == 2

@@ -109,6 +109,8 @@ def _error(tmp_path, text, name="demo"):
     ("t_end_s: 12.5", "t_end_s: 12.505", "t_end_s"),
     ("t_end_s: 12.5", "t_end_s: 10.0", "t_end_s"),
     ("t_start_s: 10.0", "t_start_s: -0.01", "t_start_s"),
+    ("t_end_s: 12.5", "t_end_s: 110.0", "t_end_s"),
+    ("t_end_s: 12.5", "t_end_s: 1000.0", "t_end_s"),
     ("t_start_s: 10.0", "t_start_s: .nan", "t_start_s"),
     ("  beta_rad: 0.001", "  beta_rad: 0.2", "initial_state.beta_rad"),
     ("gust: {start_s: 11.0}", "gust: {start_s: 11.0, duration_s: 0}", "wind.gust.duration_s"),
@@ -145,3 +147,19 @@ def test_constructor_validates():
     with pytest.raises(ValueError, match=r"^scenario 'thesis': field 't_end_s'"):
         replace(thesis, t_end_s=5.0)
     assert parse_scenario(GOOD, "x.yaml").name == "demo"
+
+
+def test_span_beyond_the_flight_condition_table_is_refused_on_loading(tmp_path):
+    """t_end must leave the plant one frame of flight-condition data past it (the rule of
+    vega_sim.plant_step.ParameterTrack, applied when the scenario is loaded, so that
+    ``vega sil run`` refuses it before any node starts)."""
+    end_s = float(FlightConditions.load().t_s[-1])
+    last = round(end_s - 0.01, 2)
+    assert parse_scenario(GOOD.replace("t_end_s: 12.5", f"t_end_s: {last}"),
+                          "demo.yaml").t_end_s == last
+    message = _error(tmp_path, GOOD.replace("t_end_s: 12.5", f"t_end_s: {end_s}"))
+    assert message.endswith(f"field 't_end_s': must be <= {last:g} s (the flight-condition "
+                            f"table ends at {end_s:g} s and the plant needs one 10 ms frame "
+                            f"past t_end), got {end_s!r}"), message
+    with pytest.raises(ValueError, match=r"^scenario 'thesis': field 't_end_s': must be <="):
+        replace(load_scenario("thesis"), t_end_s=500.0)

@@ -42,13 +42,38 @@ class RunPlan:
 
 
 def _checked_seed(seed):
-    """The seed as an int >= 0 (None stays None); BadArgument naming ``--seed`` otherwise."""
+    """The seed as an int in [0, the ``seed`` parameter's maximum] (None stays None);
+    BadArgument naming ``--seed`` otherwise.
+
+    The upper bound is the one of the node parameter the seed travels in
+    (:data:`vega_bus.parameters.SEED`, a ROS int64): a larger value would end every node at
+    start-up, so it is refused here, before anything starts.
+    """
     if seed is None:
         return None
     text = str(seed).strip()
-    if isinstance(seed, bool) or not text.isdigit():
+    if isinstance(seed, bool) or not text.isascii() or not text.isdigit():
         raise BadArgument(f"--seed must be an integer >= 0, got {seed!r}")
-    return int(text)
+    value = int(text)
+    highest = parameters.SEED.integer_range[1]
+    if value > highest:
+        raise BadArgument(f"--seed must be <= {highest} (the int64 range of the node "
+                          f"parameter 'seed'), got {text}")
+    return value
+
+
+def _checked_run_id(run_id):
+    """``run_id`` if it is a plain directory name; BadArgument naming ``--run-id`` otherwise.
+
+    Refused: empty, ``.``/``..``, a ``/``, and any non-printable character (a newline or other
+    control character, which would break the one-line messages and paste-ready commands that
+    name the run directory).
+    """
+    if (not run_id or "/" in run_id or run_id in (".", "..")
+            or not run_id.isprintable()):
+        raise BadArgument(f"--run-id {run_id!r}: must be a plain directory name (no '/', no "
+                          f"control or other non-printable characters)")
+    return run_id
 
 
 def _resolve_scenario(text):
@@ -118,8 +143,7 @@ def plan_run(scenario=DEFAULT_SCENARIO, seed=None, out=DEFAULT_OUT, realtime=Fal
         raise BadArgument(f"--out {out}: exists and is not a directory")
     run_id = run_id if run_id is not None else orchestrate.default_run_id(loaded.name,
                                                                           effective_seed)
-    if not run_id or "/" in run_id or run_id in (".", ".."):
-        raise BadArgument(f"--run-id {run_id!r}: must be a plain directory name")
+    run_id = _checked_run_id(run_id)
     layout = orchestrate.RunLayout((out / run_id).resolve())
     if layout.run_dir.exists():
         raise BadArgument(f"output {layout.run_dir} already exists (runs never overwrite one; "

@@ -14,7 +14,8 @@ picked for this invocation unless the caller set one.
 Errors (:mod:`vega_core.errors`): the libraries raise :class:`~vega_core.errors.BadInput`
 (or a subclass) with a one-line message for input the user can correct, and ``OSError`` for
 files; both are printed as ``vega: error: <message>`` on one line to stderr with exit status 2,
-like argparse's own usage errors. Any other exception (a ``ValueError`` from numpy, a
+like argparse's own usage errors (one line too, without the usage block:
+:class:`_Parser`). Any other exception (a ``ValueError`` from numpy, a
 ``KeyError``, ...) is a defect, not the user's mistake: :func:`main` prints its traceback and a
 last line ``vega: internal error: …`` to stderr and returns 1 (it does not re-raise, so that
 callers and tests get the status like any other). A closed stdout (``vega … | head``) exits 0;
@@ -61,6 +62,18 @@ def _register_unavailable(subparsers, name, error):
     parser.set_defaults(func=_fail)
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line, ``vega: error: <prog>: <message>``
+    (the sub-command named without the leading ``vega``), exit status 2 — no usage block, like
+    every other input error of the command line. ``--help`` prints the full help as before.
+    Sub-parsers (``add_subparsers``) are of the parser's own class, so every level gets it."""
+
+    def error(self, message):
+        where = self.prog.partition(" ")[2]
+        prefix = f"{where}: " if where else ""
+        self.exit(2, f"vega: error: {prefix}{one_line(message)} (see {self.prog} --help)\n")
+
+
 def build_parser():
     """Build the ``vega`` argument parser with every sub-command module that exists.
 
@@ -68,7 +81,7 @@ def build_parser():
     -------
     argparse.ArgumentParser
     """
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="vega",
         description="VEGA thrust-vector-control tools: trajectory, linearisation, synthesis, "
                     "software-in-the-loop runs, bag checks, replay, plots and ROS 2 nodes.")
@@ -126,7 +139,6 @@ def main(argv=None):
         _print_environment()
         return 0
     if getattr(args, "func", None) is None:
-        parser.print_usage(sys.stderr)
         print("vega: error: a COMMAND is required (see vega --help)", file=sys.stderr)
         return 2
     try:

@@ -5,20 +5,32 @@ reads its file with :func:`read_text` and, for YAML, parses it with :func:`parse
 (:func:`load_yaml` does both), so that a missing, unreadable or malformed file is reported
 the same way everywhere: one line naming the file, as :class:`vega_core.errors.BadFile` (or
 the loader's own subclass of it, passed as ``error``), never a traceback chain.
+
+Size limit: :func:`read_text` refuses a file larger than :data:`MAX_DOCUMENT_BYTES` (1 MiB;
+a loader may pass its own ``max_bytes``) and reads at most that many bytes plus one, so a
+wrong path (``--scenario /dev/zero``, a multi-gigabyte log) is refused at once instead of
+hanging or filling the memory. 1 MiB is far above any legitimate document: a scenario or a
+requirements file is under 2 kB, the vehicle data ~14 kB, and the largest, the generated
+flight-condition table (0.1 s rows over 110 s), ~270 kB.
 """
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any
 
 from vega_core.errors import BadFile
 
-__all__ = ["read_text", "parse_yaml", "load_yaml"]
+__all__ = ["MAX_DOCUMENT_BYTES", "read_text", "parse_yaml", "load_yaml"]
+
+MAX_DOCUMENT_BYTES = 1 << 20
+"""Largest document :func:`read_text` accepts by default [bytes] (1 MiB; module docstring)."""
 
 
-def read_text(path: str | Path, what: str, error: type[Exception] = BadFile) -> str:
-    """Contents of the UTF-8 file ``path``.
+def read_text(path: str | Path, what: str, error: type[Exception] = BadFile,
+              max_bytes: int = MAX_DOCUMENT_BYTES) -> str:
+    """Contents of the UTF-8 file ``path`` (newlines normalised as in text mode).
 
     Parameters
     ----------
@@ -28,18 +40,40 @@ def read_text(path: str | Path, what: str, error: type[Exception] = BadFile) -> 
         What the file holds, for the message (``"scenario"``, ``"vehicle data"``, …).
     error
         Exception class raised (default :class:`~vega_core.errors.BadFile`).
+    max_bytes
+        Size limit [bytes] (default :data:`MAX_DOCUMENT_BYTES`); at most ``max_bytes + 1``
+        bytes are read, whatever the file (a device such as ``/dev/zero`` reports size 0).
 
     Raises
     ------
     error
         ``"<path>: cannot read <what> (<reason>)"`` if the file is missing, unreadable or not
-        UTF-8 — one line, no traceback chain.
+        UTF-8, ``"<path>: <what> file is <n> bytes, over the <limit> limit"`` if it is too
+        large — one line, no traceback chain.
     """
+    limit = _size_text(max_bytes)
     try:
-        return Path(path).read_text(encoding="utf-8")
+        with open(path, "rb") as stream:
+            size = os.fstat(stream.fileno()).st_size
+            if size > max_bytes:
+                raise error(f"{path}: {what} file is {size} bytes, over the {limit} limit")
+            data = stream.read(max_bytes + 1)
+        if len(data) > max_bytes:
+            raise error(f"{path}: {what} file is over the {limit} limit (more than "
+                        f"{max_bytes} bytes read)")
+        text = data.decode("utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         reason = getattr(exc, "strerror", None) or type(exc).__name__
         raise error(f"{path}: cannot read {what} ({reason})") from None
+    return text.replace("\r\n", "\n").replace("\r", "\n")
+
+
+def _size_text(n: int) -> str:
+    """``n`` bytes as a limit in words: ``1 MiB (1048576 bytes)``."""
+    for unit, size in (("GiB", 1 << 30), ("MiB", 1 << 20), ("KiB", 1 << 10)):
+        if n >= size and n % size == 0:
+            return f"{n // size} {unit} ({n} bytes)"
+    return f"{n} bytes"
 
 
 def parse_yaml(text: str, source: str, error: type[Exception] = BadFile) -> dict[str, Any]:

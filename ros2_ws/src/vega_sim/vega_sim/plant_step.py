@@ -42,7 +42,8 @@ from vega_model.wind import GustProfile, WindModel, turbulence_params
 
 __all__ = [
     "PLANT_MODELS", "THESIS_DRYDEN_WEIGHT", "TruthOut", "LinearFrames", "parameters_at",
-    "ParameterTrack", "parameter_track", "thesis_dryden_coefficients", "PlantWind", "PlantStep",
+    "ParameterTrack", "parameter_track", "table_span_ms", "thesis_dryden_coefficients",
+    "PlantWind", "PlantStep",
 ]
 
 PLANT_MODELS = ("linear", "nonlinear")
@@ -103,6 +104,15 @@ def parameters_at(context: ModelContext, t_ms: int,
     return p
 
 
+def table_span_ms(time_range_s: tuple[float, float], frame_ms: int) -> tuple[float, float]:
+    """(earliest t_start, latest t_end) [ms] of a run on a flight-condition table whose times
+    span ``time_range_s`` [s]: the run's parameters (:class:`ParameterTrack`) reach one frame
+    past t_end. The one rule both :class:`ParameterTrack` and the scenario check
+    (:mod:`vega_sim.scenario`) apply."""
+    lo, hi = time_range_s
+    return 1000.0 * lo, 1000.0 * hi - frame_ms
+
+
 class ParameterTrack:
     """Model parameters along [t_start, t_end + one frame), one set per refresh interval.
 
@@ -137,10 +147,10 @@ class ParameterTrack:
         if t_start_ms % frame_ms or t_end_ms % frame_ms or t_end_ms <= t_start_ms:
             raise BadInput(f"span [{t_start_ms}, {t_end_ms}] ms must be whole frames of "
                            f"{frame_ms} ms with t_end > t_start")
-        lo, hi = context.time_range_s
-        if t_start_ms < 1000.0 * lo or t_end_ms + frame_ms > 1000.0 * hi:
+        first_ms, last_ms = table_span_ms(context.time_range_s, frame_ms)
+        if t_start_ms < first_ms or t_end_ms > last_ms:
             raise BadInput(f"span [{t_start_ms / 1000}, {t_end_ms / 1000}] s is outside the "
-                           f"flight-condition table [{lo}, {hi - frame_ms / 1000}] s")
+                           f"flight-condition table [{first_ms / 1000}, {last_ms / 1000}] s")
         self.context = context
         self.t_start_ms, self.t_end_ms = int(t_start_ms), int(t_end_ms)
         self.frame_ms, self.refresh_ms, self.dt_ms = int(frame_ms), int(refresh_ms), int(dt_ms)

@@ -10,8 +10,8 @@ File format (SI units, radians; ``#`` comments allowed)::
 
     name: thesis                    # = the file name without .yaml
     description: "..."
-    t_start_s: 10.0                 # whole 10 ms frames, 0 <= t_start < t_end
-    t_end_s: 90.0
+    t_start_s: 10.0                 # whole 10 ms frames, 0 <= t_start < t_end, both within
+    t_end_s: 90.0                   # the flight-condition table (t_end <= its end - 1 frame)
     plant: linear                   # linear | nonlinear
     initial_state:                  # optional; missing states are 0
       theta_rad: 0.0349             # also theta_dot_radps, z_m, z_dot_mps, q1, q2, q1_dot,
@@ -45,7 +45,8 @@ from typing import Any, Mapping
 from vega_bus.timing import LoopTiming, seconds_to_ms
 
 from vega_model.dynamics import STATES
-from vega_sim.plant_step import PLANT_MODELS
+from vega_model.flight_conditions import FlightConditions
+from vega_sim.plant_step import PLANT_MODELS, table_span_ms
 from vega_core.documents import parse_yaml, read_text
 from vega_core.errors import BadArgument, BadFile, BadInput
 from vega_model.uncertainty import UncertaintySet
@@ -328,6 +329,13 @@ def parse_scenario(text: str, source: str = "<scenario>",
         raise
 
 
+def _table_time_range_s() -> tuple[float, float]:
+    """First and last time [s] of the shipped flight-condition table (the one the plant flies
+    on, :class:`vega_model.parameters.ModelContext`'s default; loaded once)."""
+    t = FlightConditions.load().t_s
+    return float(t[0]), float(t[-1])
+
+
 def _validate(s: Scenario, data: VehicleData) -> None:
     """Range, type and consistency checks of a scenario's fields (raises :class:`_FieldError`)."""
     if not s.name or not isinstance(s.name, str):
@@ -346,6 +354,15 @@ def _validate(s: Scenario, data: VehicleData) -> None:
                                    f"got {value!r}")
     if not s.t_end_s > s.t_start_s:
         raise _FieldError("t_end_s", f"must be later than t_start_s ({s.t_start_s!r})")
+    first_ms, last_ms = table_span_ms(_table_time_range_s(), frame_ms)
+    if seconds_to_ms(s.t_start_s, "t_start_s") < first_ms:
+        raise _FieldError("t_start_s", f"must be >= {first_ms / 1000:g} s, the start of the "
+                                       f"flight-condition table, got {s.t_start_s!r}")
+    if seconds_to_ms(s.t_end_s, "t_end_s") > last_ms:
+        raise _FieldError("t_end_s", f"must be <= {last_ms / 1000:g} s (the flight-condition "
+                                     f"table ends at {(last_ms + frame_ms) / 1000:g} s and the "
+                                     f"plant needs one {frame_ms} ms frame past t_end), "
+                                     f"got {s.t_end_s!r}")
     for f in fields(InitialState):
         value = getattr(s.initial_state, f.name)
         if (isinstance(value, bool) or not isinstance(value, (int, float))

@@ -1,0 +1,73 @@
+"""The document loader's size limit (vega_core.documents.read_text): a file over the limit is
+refused with one line naming it and its size, without being read whole — even a device that
+reports size 0 and never ends (``/dev/zero``)."""
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from vega_core.documents import MAX_DOCUMENT_BYTES, load_yaml, read_text
+from vega_core.errors import BadFile
+from vega_model.flight_conditions import default_flight_conditions_path
+from vega_model.vehicle_data import default_vehicle_path
+
+
+def test_the_limit_is_1_mib_and_the_shipped_documents_are_far_below_it():
+    assert MAX_DOCUMENT_BYTES == 1 << 20
+    assert default_vehicle_path().stat().st_size < MAX_DOCUMENT_BYTES // 16
+    assert default_flight_conditions_path().stat().st_size < MAX_DOCUMENT_BYTES // 3
+
+
+def test_a_file_over_the_limit_is_refused_with_its_name_and_size(tmp_path):
+    big = tmp_path / "big.yaml"
+    big.write_bytes(b"# " + b"x" * MAX_DOCUMENT_BYTES + b"\n")
+    size = big.stat().st_size
+    with pytest.raises(BadFile) as info:
+        load_yaml(big, "scenario")
+    assert str(info.value) == (f"{big}: scenario file is {size} bytes, over the 1 MiB "
+                               f"(1048576 bytes) limit")
+
+
+def test_a_file_at_the_limit_is_read(tmp_path):
+    edge = tmp_path / "edge.txt"
+    edge.write_bytes(b"a" * (MAX_DOCUMENT_BYTES - 1) + b"\n")
+    assert len(read_text(edge, "text")) == MAX_DOCUMENT_BYTES
+
+
+def test_own_limit(tmp_path):
+    path = tmp_path / "t.txt"
+    path.write_text("0123456789")
+    assert read_text(path, "t", max_bytes=10) == "0123456789"
+    path.write_text("0123456789a")
+    with pytest.raises(BadFile, match=r"t\.txt: t file is 11 bytes, over the 10 bytes limit$"):
+        read_text(path, "t", max_bytes=10)
+
+
+_BOUNDED = """
+import resource, sys
+resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30))  # 1 GiB: reading all of it fails
+from vega_core.documents import read_text
+try:
+    read_text("/dev/zero", "scenario")
+except Exception as exc:
+    print(type(exc).__name__ + ": " + str(exc))
+"""
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/zero"), reason="no /dev/zero")
+def test_dev_zero_is_refused_at_once_without_eating_memory():
+    """``/dev/zero`` has st_size 0 and never ends: at most limit + 1 bytes are read (run in a
+    child process limited to 1 GiB of address space and 60 s, so a loader that reads it
+    whole fails with MemoryError instead of taking the test machine down)."""
+    done = subprocess.run([sys.executable, "-c", _BOUNDED], capture_output=True, text=True,
+                          timeout=60)
+    assert done.stdout == ("BadFile: /dev/zero: scenario file is over the 1 MiB (1048576 "
+                           "bytes) limit (more than 1048576 bytes read)\n"), done
+
+
+def test_newlines_are_normalised_as_in_text_mode(tmp_path):
+    path = tmp_path / "crlf.yaml"
+    path.write_bytes(b"a: 1\r\nb: 2\rc: 3\n")
+    assert read_text(path, "x") == "a: 1\nb: 2\nc: 3\n"
