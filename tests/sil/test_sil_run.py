@@ -1,7 +1,8 @@
 """``vega sil run`` without flying: parameters file, commands, argument validation, supervisor.
 
 The supervisor tests use stand-in processes (small Python programs) to exercise its own
-logic — failure detection, SIGCONT and SIGTERM, then SIGKILL, reaping, interrupt — deterministically;
+logic — failure detection, SIGCONT and SIGTERM, then SIGKILL, reaping, interrupt —
+deterministically;
 every SIL test with the real nodes is in tests/sil/test_sil_run_flight.py.
 """
 
