@@ -16,8 +16,11 @@ from vega_core.errors import BadArgument
 __all__ = ["register", "parse_times"]
 
 
-def parse_times(text: str) -> tuple[list[float], bool]:
-    """Parse ``SECONDS`` or ``START:STOP:STEP`` into (times, is_range).
+def parse_times(text: str, option: str = "--t", limit: int = 100000
+                ) -> tuple[list[float], bool]:
+    """Parse ``SECONDS`` or ``START:STOP:STEP`` (stop included when on the step) into
+    (times, is_range); ``option`` names the argument in the messages (``vega linearize --t``,
+    ``vega margins --at``), ``limit`` caps the number of times.
 
     Raises
     ------
@@ -28,19 +31,20 @@ def parse_times(text: str) -> tuple[list[float], bool]:
     try:
         values = [float(p) for p in parts]
     except ValueError:
-        raise BadArgument(f"--t {text!r}: expected SECONDS or START:STOP:STEP (numbers)") from None
+        raise BadArgument(f"{option} {text!r}: expected SECONDS or START:STOP:STEP (numbers)"
+                          ) from None
     if not all(math.isfinite(v) for v in values):
-        raise BadArgument(f"--t {text!r}: times must be finite")
+        raise BadArgument(f"{option} {text!r}: times must be finite")
     if len(values) == 1:
         return values, False
     if len(values) != 3:
-        raise BadArgument(f"--t {text!r}: expected SECONDS or START:STOP:STEP")
+        raise BadArgument(f"{option} {text!r}: expected SECONDS or START:STOP:STEP")
     start, stop, step = values
     if step <= 0 or stop < start:
-        raise BadArgument(f"--t {text!r}: need STEP > 0 and STOP >= START")
+        raise BadArgument(f"{option} {text!r}: need STEP > 0 and STOP >= START")
     n = int(math.floor((stop - start) / step + 1e-9)) + 1
-    if n > 100000:
-        raise BadArgument(f"--t {text!r}: {n} times requested (limit 100000)")
+    if n > limit:
+        raise BadArgument(f"{option} {text!r}: {n} times requested (limit {limit})")
     return [round(start + i * step, 12) for i in range(n)], True
 
 

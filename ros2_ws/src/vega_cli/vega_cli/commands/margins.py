@@ -32,32 +32,11 @@ _DEFAULT_AT = "0:100:0.5"
 
 
 def parse_at(text: str) -> list[float]:
-    """Parse ``--at SECONDS`` or ``START:STOP:STEP`` (stop included when on the step).
+    """Parse ``--at SECONDS`` or ``START:STOP:STEP`` (:func:`~vega_cli.commands.linearize.
+    parse_times`, at most 10000 times)."""
+    from vega_cli.commands.linearize import parse_times
 
-    Raises
-    ------
-    BadArgument
-        One line naming the bad argument.
-    """
-    parts = text.split(":")
-    try:
-        values = [float(p) for p in parts]
-    except ValueError:
-        raise BadArgument(f"--at {text!r}: expected SECONDS or START:STOP:STEP (numbers)") \
-            from None
-    if not all(math.isfinite(v) for v in values):
-        raise BadArgument(f"--at {text!r}: times must be finite")
-    if len(values) == 1:
-        return values
-    if len(values) != 3:
-        raise BadArgument(f"--at {text!r}: expected SECONDS or START:STOP:STEP")
-    start, stop, step = values
-    if step <= 0 or stop < start:
-        raise BadArgument(f"--at {text!r}: need STEP > 0 and STOP >= START")
-    n = int(math.floor((stop - start) / step + 1e-9)) + 1
-    if n > 10000:
-        raise BadArgument(f"--at {text!r}: {n} times requested (limit 10000)")
-    return [round(start + i * step, 9) for i in range(n)]
+    return parse_times(text, option="--at", limit=10000)[0]
 
 
 def _v(x, width=6, prec=1, bad=False) -> str:
