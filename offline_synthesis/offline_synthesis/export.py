@@ -22,7 +22,8 @@ from scipy.signal import cont2discrete
 
 from vega_gnc.controller_table import FORMAT_VERSION, ControllerTable, load_controller_table
 
-__all__ = ["discretise", "git_revision", "library_versions", "write_controller_table"]
+__all__ = ["discretise", "git_revision", "library_versions", "write_controller_table",
+           "write_checked_npz"]
 
 
 def discretise(A, B, C, D, dt_s: float):
@@ -112,16 +113,23 @@ def write_controller_table(path: str | Path, grid_v_mps, A, B, C, D, *, dt_s: fl
         metadata=np.array(json.dumps(meta, sort_keys=True)), **disc)
     if rate_grid_mps2 is not None:
         arrays["rate_grid_mps2"] = np.asarray(rate_grid_mps2, float)
+    write_checked_npz(path, arrays, load_controller_table)
+    return load_controller_table(path)
+
+
+def write_checked_npz(path: str | Path, arrays: Mapping[str, np.ndarray], loader) -> None:
+    """Write ``arrays`` to the ``.npz`` file ``path`` atomically, after ``loader`` (the flight
+    software's own loader) accepted the temporary file: a file that replaces the old one is a
+    file the flight software reads."""
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=out.name, suffix=".npz", dir=out.parent)
     os.close(fd)
     try:
         np.savez_compressed(tmp, **arrays)
-        load_controller_table(tmp)  # the flight software must accept it before it replaces anything
-        os.chmod(tmp, 0o644)        # mkstemp creates 0600; the table is installed and shared
+        loader(tmp)             # the flight software must accept it before it replaces anything
+        os.chmod(tmp, 0o644)    # mkstemp creates 0600; the file is installed and shared
         os.replace(tmp, out)
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
-    return load_controller_table(out)

@@ -8,6 +8,7 @@ context. Bags come from the in-process simulation (tests/fixture_bags.py).
 import subprocess
 import sys
 import time
+from dataclasses import replace
 
 import pytest
 
@@ -166,3 +167,27 @@ def test_controller_replay_of_a_real_sil_run(run, tmp_path, capsys):
     out = capsys.readouterr().out
     assert status == 0, out
     assert "50 commands replayed, 50 recorded, 50 compared" in out
+
+
+def test_controller_replay_flies_the_recorded_guidance_reference(run, tmp_path, capsys):
+    """A bag of a run with the wind-biased reference (nominal cut to 40–41 s, where the
+    reference is far from 0): the replayed controller tracks the reference the metadata names
+    and reproduces every command; the same bag claiming no reference does not."""
+    from vega_bags import simbag
+    from vega_sim.closed_loop import run_scenario
+    from vega_sim.scenario import load_scenario
+
+    scenario = replace(load_scenario("nominal"), t_start_s=40.0, t_end_s=41.0)
+    result = run_scenario(scenario, run.table_path)
+    good = simbag.write_simulation_bag(tmp_path / "good", result, run.table_path, git_rev="t")
+    meta = bagio.read_run_bag(good).metadata
+    assert meta[bagio.META_GUIDANCE_REFERENCE].endswith("guidance_reference.npz")
+    status = cli.main(["replay", str(good), "--check-controller"])
+    out = capsys.readouterr().out
+    assert status == 0 and "50 commands replayed, 50 recorded, 50 compared" in out, out
+
+    lying = dict(meta, **{bagio.META_GUIDANCE_REFERENCE: "none"})
+    lying.pop(bagio.META_GUIDANCE_REFERENCE_SHA256)
+    bad = simbag.write_messages(tmp_path / "bad", simbag.simulation_messages(result), lying)
+    assert cli.main(["replay", str(bad), "--check-controller"]) == 1
+    assert "DIFFERENT" in capsys.readouterr().out

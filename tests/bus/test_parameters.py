@@ -74,7 +74,7 @@ def test_defaults_and_problems_are_the_nodes_behaviour():
     """Pinned: a node started without a parameter file behaves as before the table."""
     defaults = {name: spec.default for name, spec in parameters.PARAMETERS.items()}
     assert defaults == {"scenario": "nominal", "seed": -1, "realtime": False,
-                        "controller_table": "", "bag_path": "",
+                        "controller_table": "", "guidance_reference": "", "bag_path": "",
                         "participants": list(PARTICIPANTS), "barrier_timeout_s": 30.0,
                         "stall_timeout_s": 10.0}
     problems = [("scenario", " ", "must name a scenario or a YAML file"),

@@ -170,6 +170,35 @@ def test_malformed_controller_table_exits_2_with_one_line(nodes, tmp_path):
 
 
 @pytest.mark.ros
+def test_malformed_guidance_reference_exits_2_with_one_line(nodes, tmp_path):
+    bad = tmp_path / "broken_reference.npz"
+    bad.write_bytes(b"not a zip archive")
+    proc = nodes("tvc_controller", _params(tmp_path / "p.yaml", guidance_reference=str(bad)))
+    code, _out, err = _finish(proc)
+    assert code == 2
+    assert err.count("\n") == 1 and str(bad) in err and "guidance reference" in err, err
+
+
+@pytest.mark.ros
+def test_controller_refuses_a_guidance_reference_that_is_not_the_runs(nodes, tmp_path,
+                                                                      pd_table):
+    """A hand-started controller told 'none' in a run whose scenario flies the installed
+    reference: one line naming both, exit 2, before the barrier."""
+    info = RunInfo("driven", 0, 10_000, 10_100, LoopTiming(), "default").check()
+    driver = _Driver(info)
+    try:
+        proc = nodes("tvc_controller", _params(tmp_path / "p.yaml", guidance_reference="none",
+                                               controller_table=str(pd_table[0]),
+                                               participants=["tvc_controller"]))
+        driver.spin_until(lambda: proc.poll() is not None)
+        code, _out, err = _finish(proc)
+    finally:
+        driver.close()
+    assert code == 2 and err.count("\n") == 1, err
+    assert "'guidance_reference' 'none' is not the run's guidance 'default'" in err, err
+
+
+@pytest.mark.ros
 @pytest.mark.parametrize("name, key, value, text", [
     ("plant", "scenario", "no_such_scenario", "unknown scenario 'no_such_scenario'"),
     ("plant", "seed", -5, "parameter 'seed'"),
@@ -245,7 +274,8 @@ class _Driver:
 
 
 def _controller_with_driver(nodes, tmp_path, table_path, n_frames):
-    info = RunInfo("driven", 0, 10_000, 10_000 + 10 * n_frames, LoopTiming()).check()
+    info = RunInfo("driven", 0, 10_000, 10_000 + 10 * n_frames, LoopTiming(),
+                   "none").check()
     driver = _Driver(info)
     proc = nodes("tvc_controller", _params(tmp_path / "p.yaml", controller_table=str(table_path),
                                            participants=["tvc_controller"]))
@@ -323,7 +353,7 @@ def test_controller_stall_and_sigterm(nodes, tmp_path, pd_table):
     import signal
 
     path, table = pd_table
-    info = RunInfo("driven", 0, 10_000, 10_100, LoopTiming()).check()
+    info = RunInfo("driven", 0, 10_000, 10_100, LoopTiming(), "none").check()
     driver = _Driver(info)
     try:
         stalled = nodes("tvc_controller", _params(

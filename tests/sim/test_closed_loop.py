@@ -49,7 +49,7 @@ def gain_table(tmp_path_factory):
 def _scenario(**changes):
     base = Scenario(name="test", description="test", t_start_s=10.0, t_end_s=20.0,
                     plant="linear", initial_state=InitialState(theta_rad=math.radians(2.0)),
-                    wind=QUIET, sensor_noise=False, seed=1)
+                    wind=QUIET, sensor_noise=False, seed=1, guidance="none")
     return replace(base, **changes)
 
 

@@ -35,7 +35,8 @@ uncertainty: {thrust: 0.05, delay_s: 0.01}
 
 
 def test_shipped_scenarios():
-    assert scenario_names() == ("gust", "nominal", "severe", "thesis")
+    assert scenario_names() == ("gust", "nominal", "nominal_no_bias", "severe", "thesis",
+                                "wind_change")
     data = load_vehicle_data()
     thesis = load_scenario("thesis")
     assert (thesis.t_start_s, thesis.t_end_s, thesis.plant) == (10.0, 90.0, "linear")
@@ -133,8 +134,9 @@ def test_loader_other_errors(tmp_path):
     assert "top level must be a mapping" in _error(tmp_path, "- a\n- b\n")
     no_wind_mapping = GOOD[:GOOD.index("wind:")] + "wind: 3\nsensor_noise: false\nseed: 7\n"
     assert "field 'wind': must be a mapping" in _error(tmp_path, no_wind_mapping)
-    with pytest.raises(ValueError, match=re.escape("unknown scenario 'nope' (shipped: gust, "
-                                                   "nominal, severe, thesis)")):
+    with pytest.raises(ValueError, match=re.escape(
+            "unknown scenario 'nope' (shipped: gust, nominal, nominal_no_bias, severe, "
+            "thesis, wind_change)")):
         load_scenario("nope")
     with pytest.raises(ValueError, match="cannot read scenario"):
         load_scenario(tmp_path / "missing.yaml")

@@ -259,7 +259,8 @@ def run_context(bag: bagio.RunBag) -> RunContext:
     info = None
     try:
         info = RunInfo(scenario.name, int(seed) if seed.isdigit() else scenario.seed,
-                       scenario.t_start_ms, scenario.t_end_ms, timing).check()
+                       scenario.t_start_ms, scenario.t_end_ms, timing,
+                       scenario.guidance).check()
     except BadInput as exc:
         problems.append(one_line(exc))
     return RunContext(scenario, timing, info, float(scenario.initial_state.beta_rad),

@@ -53,6 +53,7 @@ from vega_bus.timing import NS_PER_S
 
 __all__ = ["BagError", "META_SCENARIO", "META_SCENARIO_YAML", "META_SEED",
            "META_CONTROLLER_TABLE", "META_CONTROLLER_TABLE_SHA256", "META_GIT_REVISION",
+           "META_GUIDANCE_REFERENCE", "META_GUIDANCE_REFERENCE_SHA256",
            "REQUIRED_METADATA", "vega_typestore", "topic_qos", "run_metadata",
            "git_revision", "file_sha256", "RunBagWriter", "TopicColumns", "RunBag",
            "read_run_bag", "iter_raw_messages", "cdr_offsets"]
@@ -64,6 +65,10 @@ META_SEED = "vega.seed"
 META_CONTROLLER_TABLE = "vega.controller_table"
 META_CONTROLLER_TABLE_SHA256 = "vega.controller_table_sha256"
 META_GIT_REVISION = "vega.git_revision"
+META_GUIDANCE_REFERENCE = "vega.guidance_reference"
+META_GUIDANCE_REFERENCE_SHA256 = "vega.guidance_reference_sha256"
+"""The guidance reference the controller flew (absolute path, or "none"; a bag without the key
+was recorded before the guidance existed: flown with none) and its SHA-256."""
 REQUIRED_METADATA = (META_SCENARIO, META_SCENARIO_YAML, META_SEED, META_CONTROLLER_TABLE,
                      META_CONTROLLER_TABLE_SHA256, META_GIT_REVISION)
 """custom_data keys every run bag carries (the writer refuses to open without them)."""
@@ -161,6 +166,7 @@ def git_revision(where: str | Path | None = None) -> str:
 
 def run_metadata(scenario_name: str, scenario_yaml: str, seed: int,
                  controller_table: str | Path, *, git_rev: str | None = None,
+                 guidance_reference: str | Path | None = None,
                  extra: Mapping[str, str] | None = None) -> dict[str, str]:
     """The custom metadata of a run bag (:data:`REQUIRED_METADATA` keys, plus ``extra``).
 
@@ -174,6 +180,9 @@ def run_metadata(scenario_name: str, scenario_yaml: str, seed: int,
         Path of the controller table file (its SHA-256 is computed here).
     git_rev
         Git revision (default: :func:`git_revision`).
+    guidance_reference
+        Path of the guidance reference the controller flies (its SHA-256 is computed here),
+        or None for none.
     extra
         More string entries (e.g. ``vega.plant``), added as they are.
     """
@@ -185,7 +194,11 @@ def run_metadata(scenario_name: str, scenario_yaml: str, seed: int,
         META_CONTROLLER_TABLE: str(table.resolve()),
         META_CONTROLLER_TABLE_SHA256: file_sha256(table),
         META_GIT_REVISION: git_revision() if git_rev is None else str(git_rev),
+        META_GUIDANCE_REFERENCE: "none",
     }
+    if guidance_reference is not None:
+        meta[META_GUIDANCE_REFERENCE] = str(Path(guidance_reference).resolve())
+        meta[META_GUIDANCE_REFERENCE_SHA256] = file_sha256(guidance_reference)
     meta.update({str(k): str(v) for k, v in (extra or {}).items()})
     return meta
 

@@ -132,7 +132,10 @@ def _recorder(shell: Shell) -> None:
             table = default_table_path()
         from vega_sim.scenario import scenario_file
         source = scenario_file(shell.node.get_parameter("scenario").value)
+        from vega_gnc.guidance_reference import reference_path
+        guidance = reference_path(scenario.guidance)
         meta = bagio.run_metadata(scenario.name, read_text(source, "scenario"), seed, table,
+                                  guidance_reference=guidance,
                                   extra={"vega.plant": scenario.plant,
                                          "vega.t_start_s": repr(scenario.t_start_s),
                                          "vega.t_end_s": repr(scenario.t_end_s)})

@@ -26,6 +26,8 @@ rejecting its input). A bad bag raises :class:`vega_bags.bagio.BagError`.
 
 from __future__ import annotations
 
+import dataclasses
+
 import math
 import shutil
 import struct
@@ -291,6 +293,22 @@ def _table_path(bag: bagio.RunBag, table: str | Path | None) -> tuple[Path, list
     return path, notes
 
 
+def _guidance_setting(bag: bagio.RunBag) -> tuple[str, list[str]]:
+    """The ``guidance_reference`` parameter the recorded run flew ("none" for a bag recorded
+    before the guidance existed) and remarks about it."""
+    from vega_gnc.guidance_reference import NO_GUIDANCE, load_guidance_reference
+
+    recorded = bag.metadata.get(bagio.META_GUIDANCE_REFERENCE, NO_GUIDANCE)
+    if recorded == NO_GUIDANCE:
+        return NO_GUIDANCE, []
+    load_guidance_reference(recorded)  # a missing or bad file: one line (BadInput), exit 2
+    sha = bag.metadata.get(bagio.META_GUIDANCE_REFERENCE_SHA256)
+    if sha and bagio.file_sha256(recorded) != sha:
+        return recorded, [f"{recorded} differs from the guidance reference the run was "
+                          f"recorded with (SHA-256 {sha[:12]}…)"]
+    return recorded, []
+
+
 class _ControllerProcess:
     """The ``tvc_controller`` executable as a child process (the orchestrator's supervisor)."""
 
@@ -418,6 +436,9 @@ def check_controller(path: str | Path, table: str | Path | None = None, *,
     bag = bagio.read_run_bag(path)
     info = _run_info(bag)
     table_path, notes = _table_path(bag, table)
+    guidance, guidance_notes = _guidance_setting(bag)
+    notes += guidance_notes
+    info = dataclasses.replace(info, guidance=guidance)   # the controller flies the bag's
     ins_raw = [d for _, _, d in bagio.iter_raw_messages(path, {topics.INS.name})]
     recorded = [d for _, _, d in bagio.iter_raw_messages(path, {topics.TVC_CMD.name})]
     samples_ms = (bag[topics.INS.name]["sample_stamp_ns"] // NS_PER_MS

@@ -64,6 +64,7 @@ def markdown(check: BagCheck, plots=PLOTS) -> str:
     for key, label in ((bagio.META_SCENARIO, "scenario"), (bagio.META_SEED, "seed"),
                        (bagio.META_CONTROLLER_TABLE, "controller table"),
                        (bagio.META_CONTROLLER_TABLE_SHA256, "table SHA-256"),
+                       (bagio.META_GUIDANCE_REFERENCE, "guidance reference"),
                        (bagio.META_GIT_REVISION, "git revision")):
         lines.append(_row(label, f"`{meta.get(key, '—')}`"))
     r = check.result

@@ -48,9 +48,11 @@ def scenario_yaml(scenario) -> str:
         "plant": scenario.plant,
         "initial_state": {k: float(v) for k, v in vars(scenario.initial_state).items()},
         "wind": {"profile": wind.profile, "turbulence": wind.turbulence,
-                 "thesis_constant_dryden": wind.thesis_constant_dryden, "gust": gust},
+                 "thesis_constant_dryden": wind.thesis_constant_dryden, "gust": gust,
+                 "profile_scale": wind.profile_scale, "profile_shift_m": wind.profile_shift_m},
         "sensor_noise": scenario.sensor_noise, "seed": scenario.seed,
         "uncertainty": {k: float(v) for k, v in scenario.uncertainty},
+        "guidance": scenario.guidance,
     }
     return yaml.safe_dump(tree, sort_keys=False)
 
@@ -138,8 +140,12 @@ def write_messages(path: str | Path, messages: Iterable[tuple[str, int, Any]],
 
 def write_simulation_bag(path: str | Path, result, table_path: str | Path, *,
                          compute_time_s: float = 5e-5, git_rev: str | None = None) -> Path:
-    """Write the run bag of an in-process run (metadata: its scenario, seed and table)."""
+    """Write the run bag of an in-process run (metadata: its scenario, seed, table and the
+    guidance reference the scenario names)."""
+    from vega_gnc.guidance_reference import reference_path
+
     meta = bagio.run_metadata(result.scenario.name, scenario_yaml(result.scenario),
-                              result.seed, table_path, git_rev=git_rev)
+                              result.seed, table_path, git_rev=git_rev,
+                              guidance_reference=reference_path(result.scenario.guidance))
     return write_messages(path, simulation_messages(result, compute_time_s=compute_time_s),
                           meta)

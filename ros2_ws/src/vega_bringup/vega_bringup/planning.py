@@ -102,6 +102,24 @@ def _resolve_table(path, scenario):
     return table_path
 
 
+def _check_guidance(scenario) -> None:
+    """Load and validate the guidance reference the scenario names (the nodes take it from the
+    run description), so that a bad one is refused before anything starts."""
+    from vega_gnc.guidance_reference import (NO_GUIDANCE, default_reference_path,
+                                             load_guidance_reference)
+
+    if scenario.guidance == NO_GUIDANCE:
+        return
+    if scenario.guidance == "default":
+        path = default_reference_path()
+        if not path.is_file():
+            raise BadInput(f"no guidance reference: {path} is not installed; run `vega "
+                           f"guidance --out` or fly a scenario with 'guidance: none'")
+    else:
+        path = Path(scenario.guidance).resolve()
+    load_guidance_reference(path)
+
+
 def plan_run(scenario=DEFAULT_SCENARIO, seed=None, out=DEFAULT_OUT, realtime=False, table=None,
              run_id=None, domain_id=None, barrier_timeout_s=None):
     """Validate the arguments of a run and build its plan; nothing is written or started.
@@ -129,7 +147,8 @@ def plan_run(scenario=DEFAULT_SCENARIO, seed=None, out=DEFAULT_OUT, realtime=Fal
     Raises
     ------
     BadInput
-        One line naming the bad argument (scenario, seed, table, output, executable).
+        One line naming the bad argument (scenario, its guidance reference, seed, table,
+        output, executable).
     """
     from vega_bringup import orchestrate
     from vega_bringup.executables import find_executable
@@ -138,6 +157,7 @@ def plan_run(scenario=DEFAULT_SCENARIO, seed=None, out=DEFAULT_OUT, realtime=Fal
     loaded, scenario_param = _resolve_scenario(str(scenario))
     effective_seed = loaded.seed if seed is None else seed
     table_path = _resolve_table(table, loaded)
+    _check_guidance(loaded)
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise BadArgument(f"--out {out}: exists and is not a directory")

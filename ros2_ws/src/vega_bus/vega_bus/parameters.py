@@ -24,7 +24,8 @@ from typing import Any, Callable
 from vega_bus.barrier import PARTICIPANTS
 
 __all__ = ["ParameterSpec", "PARAMETERS", "SEED_FROM_SCENARIO", "INT64_MAX", "spec",
-           "SCENARIO", "SEED", "REALTIME", "CONTROLLER_TABLE", "BAG_PATH",
+           "SCENARIO", "SEED", "REALTIME", "CONTROLLER_TABLE", "GUIDANCE_REFERENCE",
+           "BAG_PATH",
            "PARTICIPANTS_PARAM", "BARRIER_TIMEOUT_S", "STALL_TIMEOUT_S"]
 
 SEED_FROM_SCENARIO = -1
@@ -132,6 +133,13 @@ CONTROLLER_TABLE = ParameterSpec(
     "metadata; empty: the installed share/vega_gnc/config/lpv_controller.npz.",
     constraints="a readable controller table whose sample time is the controller period",
     nodes=("tvc_controller", "recorder"))
+GUIDANCE_REFERENCE = ParameterSpec(
+    "guidance_reference", "",
+    "Wind-biased guidance reference the controller tracks. Empty: the one the run's scenario "
+    "names (its 'guidance', sent on /vega/run). Otherwise 'none' or a file, which must be "
+    "the run's own (a check for a hand-started controller).",
+    constraints="'', 'none' or a readable guidance reference file that is the run's",
+    nodes=("tvc_controller",))
 BAG_PATH = ParameterSpec(
     "bag_path", "",
     "Directory of the rosbag2 (MCAP) the recorder writes.",
@@ -157,8 +165,8 @@ STALL_TIMEOUT_S = ParameterSpec(
     nodes=_ALL_NODES)
 
 PARAMETERS: dict[str, ParameterSpec] = {p.name: p for p in (
-    SCENARIO, SEED, REALTIME, CONTROLLER_TABLE, BAG_PATH, PARTICIPANTS_PARAM, BARRIER_TIMEOUT_S,
-    STALL_TIMEOUT_S)}
+    SCENARIO, SEED, REALTIME, CONTROLLER_TABLE, GUIDANCE_REFERENCE, BAG_PATH,
+    PARTICIPANTS_PARAM, BARRIER_TIMEOUT_S, STALL_TIMEOUT_S)}
 """Every node parameter of the graph, by name."""
 
 

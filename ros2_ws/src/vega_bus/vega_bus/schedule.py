@@ -77,6 +77,9 @@ class RunInfo:
         Span [ms], whole frames.
     timing
         Loop timing of the run (the scenario's delay deviation included).
+    guidance
+        The guidance reference the scenario names (``default``: the installed one, ``none``,
+        or a file path): the controller flies it (vega_gnc.guidance_reference).
     """
 
     scenario: str
@@ -84,6 +87,7 @@ class RunInfo:
     t_start_ms: int
     t_end_ms: int
     timing: LoopTiming
+    guidance: str = "default"
 
     def check(self) -> "RunInfo":
         """Validate the span against the timing; return self.
@@ -160,7 +164,7 @@ class RunInfo:
             timing = LoopTiming(**{f.name: int(d["timing"][f.name])
                                    for f in fields(LoopTiming)})
             info = cls(str(d["scenario"]), int(d["seed"]), int(d["t_start_ms"]),
-                       int(d["t_end_ms"]), timing)
+                       int(d["t_end_ms"]), timing, str(d["guidance"]))
         except (ValueError, TypeError, KeyError) as exc:
             raise BadInput(f"malformed run description: {exc}") from None
         return info.check()

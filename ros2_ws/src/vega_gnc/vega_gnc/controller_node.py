@@ -6,9 +6,13 @@ Start-up, before the start barrier (bad input → one line, exit 2):
    ``share/vega_gnc/config/lpv_controller.npz``) → :func:`load_controller_table` (a malformed
    table is rejected here);
 2. the run description from the time master on ``/vega/run``
-   (:class:`vega_bus.schedule.RunInfo`: span and loop timing; the flight side reads no
-   scenario), waited for up to ``barrier_timeout_s`` (exit 1 if it never comes); the table's
-   ``dt_s`` must be the controller period.
+   (:class:`vega_bus.schedule.RunInfo`: span, loop timing and the guidance reference of the
+   run; the flight side reads no scenario), waited for up to ``barrier_timeout_s`` (exit 1 if
+   it never comes); the table's ``dt_s`` must be the controller period;
+3. the guidance reference: the run's (``guidance`` of the run description: ``default`` = the
+   installed ``share/vega_gnc/config/guidance_reference.npz``, ``none`` = zero references, or
+   a file) → :func:`vega_gnc.guidance_reference.resolve_reference` (a malformed file is
+   rejected here); a non-empty parameter ``guidance_reference`` must name the same.
 
 Loop: every ``/vega/ins`` measurement is checked (sequence without gap, else exit 1) and
 handed to :class:`vega_gnc.controller_step.ControllerStep` — the same step the in-process
@@ -60,12 +64,19 @@ def to_sample(msg) -> InsOut:
     return sample._replace(valid=False)
 
 
+def _resolved(reference_path, setting: str) -> str:
+    """A guidance setting as a comparable text: the absolute file path, or ``none``."""
+    path = reference_path(setting)
+    return "none" if path is None else str(path.resolve())
+
+
 def _controller(shell: Shell) -> None:
     from std_msgs.msg import String
     from vega_msgs.msg import InsMeasurement, TvcCommand
 
     from vega_gnc.controller_table import default_table_path, load_controller_table
     from vega_gnc.controller_step import ControllerStep
+    from vega_gnc.guidance_reference import reference_path, resolve_reference
 
     node = shell.node
     path = shell.param("controller_table")
@@ -73,6 +84,9 @@ def _controller(shell: Shell) -> None:
     try:
         path = path or default_table_path()
         table = load_controller_table(path)
+        guidance = shell.param("guidance_reference")
+        if guidance:
+            resolve_reference(guidance)     # a bad file: refused before waiting for the run
     except (BadInput, OSError) as exc:
         raise NodeExit(EXIT_BAD_INPUT, one_line(exc)) from None
 
@@ -90,7 +104,15 @@ def _controller(shell: Shell) -> None:
                      barrier_timeout, failure="start barrier timed out")
     info = infos[-1]
     try:
-        ctrl = ControllerStep(table, info.timing)
+        if guidance and _resolved(reference_path, guidance) != _resolved(reference_path,
+                                                                         info.guidance):
+            raise BadInput(f"parameter 'guidance_reference' {guidance!r} is not the run's "
+                           f"guidance {info.guidance!r} (scenario {info.scenario!r})")
+        reference = resolve_reference(info.guidance)
+    except (BadInput, OSError) as exc:
+        raise NodeExit(EXIT_BAD_INPUT, one_line(exc)) from None
+    try:
+        ctrl = ControllerStep(table, info.timing, reference=reference)
     except BadInput as exc:
         raise NodeExit(EXIT_BAD_INPUT, f"{path}: {exc}") from None
 

@@ -11,8 +11,11 @@ code. Per step (at the controller rate, thesis §4.3.2 "affine interpolation"):
    exactly);
 2. schedule on the measured velocity: the discrete controller matrices are interpolated
    linearly in velocity between grid points (clamped at the grid ends, flagged);
-3. ``u = Cd x + Dd y``, ``x ← Ad x + Bd y`` with ``y = sign · measurements`` in the table's
-   input order (sign −1: the controller input is reference − measurement, references 0);
+3. ``u = Cd x + Dd y + β_ff(t)``, ``x ← Ad x + Bd y`` with
+   ``y = sign · (measurements − references(t))`` in the table's input order (sign −1: the
+   controller input is reference − measurement); references and feed-forward β_ff come from the
+   guidance reference (:mod:`vega_gnc.guidance_reference`, at the sample time), or are 0 when
+   none is flown;
 4. check that the new state and the command are finite; limit the command to the actuator
    range (flagged).
 
@@ -42,7 +45,8 @@ from typing import NamedTuple
 import numpy as np
 from vega_msgs.msg import TvcCommand
 
-from vega_gnc.controller_table import ControllerTable
+from vega_gnc.controller_table import MEASUREMENT_NAMES, ControllerTable
+from vega_gnc.guidance_reference import GuidanceReference
 
 __all__ = ["STATUS_OK", "STATUS_HOLD_LAST", "STATUS_VELOCITY_CLAMPED", "STATUS_SAFE_ZERO",
            "STATUS_LIMITED", "Measurement", "Command", "RuntimeLimits", "ControllerRuntime"]
@@ -117,9 +121,12 @@ class ControllerRuntime:
     """Scheduled discrete LPV controller with input validation (see module docstring)."""
 
     def __init__(self, table: ControllerTable, limits: RuntimeLimits = RuntimeLimits(),
-                 rate_mps2: float | None = None):
+                 rate_mps2: float | None = None, reference: GuidanceReference | None = None):
         self.table = table
         self.limits = limits
+        self.reference = reference
+        # columns of the reference's [references..., feed-forward] rows, in the input order
+        self._ref_cols = [MEASUREMENT_NAMES.index(name) for name in table.input_names]
         self._sign = float(table.measurement_sign)
         self._getters = tuple(_FIELDS[name] for name in table.input_names)
         bounds = {"pitch_rad": limits.max_abs_pitch_rad,
@@ -208,9 +215,15 @@ class ControllerRuntime:
         S, v_sched, status = self._schedule(v)
         n = self._n
         self._xy[n:] = values
+        ref = None
+        if self.reference is not None:
+            ref = self.reference.at(m.stamp_s)
+            self._xy[n:] -= ref[self._ref_cols]
         self._xy[n:] *= self._sign
         out = S @ self._xy
         u = float(out[n])
+        if ref is not None:
+            u += float(ref[-1])             # the feed-forward of the reference
         if not (math.isfinite(u) and np.isfinite(out).all()):
             self.reset()                    # a table whose gains overflow: never emit it
             return Command(0.0, v_sched, STATUS_SAFE_ZERO)

@@ -18,6 +18,7 @@ from vega_bus.timing import LoopTiming, check_ms
 
 from vega_gnc.controller_runtime import ControllerRuntime, Measurement, RuntimeLimits
 from vega_gnc.controller_table import ControllerTable
+from vega_gnc.guidance_reference import GuidanceReference
 
 __all__ = ["CommandOut", "ControllerStep"]
 
@@ -35,6 +36,9 @@ class ControllerStep:
         Runtime safety parameters.
     rate_mps2
         ρ̇ slice of a rate-dependent table (None: the runtime's default, the upper slice).
+    reference
+        Wind-biased guidance reference the controller tracks (None: zero references, no
+        feed-forward).
 
     Notes
     -----
@@ -44,9 +48,10 @@ class ControllerStep:
     """
 
     def __init__(self, table: ControllerTable, timing: LoopTiming,
-                 limits: RuntimeLimits = RuntimeLimits(), rate_mps2: float | None = None):
+                 limits: RuntimeLimits = RuntimeLimits(), rate_mps2: float | None = None,
+                 reference: GuidanceReference | None = None):
         check_ms(table.dt_s, timing.controller_period_ms, "controller table dt_s")
-        self.runtime = ControllerRuntime(table, limits, rate_mps2)
+        self.runtime = ControllerRuntime(table, limits, rate_mps2, reference)
         self._period_ms = timing.controller_period_ms
         self._latency_ms = timing.computing_latency_ms
         self._seq = 0

@@ -18,15 +18,15 @@ between the two rate slices, clamped.
 
 from __future__ import annotations
 
-import json
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
-from vega_core.errors import BadFile, BadInput
+from vega_core.errors import BadFile
+
+from vega_gnc.config_files import check_header, installed_config, numeric_arrays, read_npz
 
 __all__ = [
     "default_table_path",
@@ -128,35 +128,10 @@ def _fail(path: str, what: str) -> ControllerTableError:
 
 def validate_arrays(path: str, arrays: Mapping[str, np.ndarray]) -> ControllerTable:
     """Validate a mapping of named arrays (as stored in the file) into a ControllerTable."""
-    for key in _REQUIRED_KEYS:
-        if key not in arrays:
-            raise _fail(path, f"missing key '{key}'")
-    try:
-        version = int(np.asarray(arrays["format_version"]).item())
-    except (TypeError, ValueError):
-        raise _fail(path, "'format_version' is not an integer") from None
-    if version != FORMAT_VERSION:
-        raise _fail(path, f"format_version {version} is not supported (expected {FORMAT_VERSION})")
-    try:
-        meta = json.loads(str(np.asarray(arrays["metadata"]).item()))
-    except (TypeError, ValueError):
-        raise _fail(path, "'metadata' is not a JSON string") from None
-    if not isinstance(meta, dict):
-        raise _fail(path, "'metadata' must be a JSON object")
-    for key in REQUIRED_METADATA:
-        if key not in meta:
-            raise _fail(path, f"metadata lacks '{key}'")
-
-    num = {}
-    for key in (k for k in _REQUIRED_KEYS if k != "metadata"):
-        arr = np.asarray(arrays[key])
-        if arr.dtype.kind not in "iuf":
-            raise _fail(path, f"'{key}' is not numeric")
-        arr = arr.astype(float)
-        if not np.all(np.isfinite(arr)):
-            raise _fail(path, f"'{key}' has non-finite values")
-        arr.setflags(write=False)
-        num[key] = arr
+    meta = check_header(path, arrays, _REQUIRED_KEYS, FORMAT_VERSION, REQUIRED_METADATA,
+                        ControllerTableError)
+    num = numeric_arrays(path, arrays, (k for k in _REQUIRED_KEYS if k != "metadata"),
+                         ControllerTableError)
     grid = num["grid_v_mps"]
     if grid.ndim != 1 or grid.size < 2:
         raise _fail(path, "'grid_v_mps' must be a 1-D array of at least 2 velocities")
@@ -222,13 +197,7 @@ def load_controller_table(path: str | Path) -> ControllerTable:
         One line naming the file and the problem (unreadable, not an npz, any check above).
     """
     p = str(path)
-    try:
-        with np.load(p, allow_pickle=False) as npz:
-            arrays = {key: npz[key] for key in npz.files}
-    except FileNotFoundError:
-        raise _fail(p, "no such file") from None
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-        raise _fail(p, f"not a readable controller table ({type(exc).__name__})") from None
+    arrays = read_npz(p, ControllerTableError, "controller table")
     return validate_arrays(p, arrays)
 
 
@@ -240,10 +209,4 @@ def default_table_path() -> Path:
     BadInput
         If the package ``vega_gnc`` is not in the ament index (workspace not built).
     """
-    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
-
-    try:
-        return Path(get_package_share_directory("vega_gnc")) / "config" / "lpv_controller.npz"
-    except PackageNotFoundError:
-        raise BadInput("package 'vega_gnc' not found in the ament index; did 'make setup' "
-                       "build it?") from None
+    return installed_config("lpv_controller.npz")

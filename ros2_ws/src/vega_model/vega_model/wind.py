@@ -35,6 +35,7 @@ __all__ = [
     "dryden_ss",
     "DrydenTurbulence",
     "GustProfile",
+    "ProfileChange",
     "WindComponents",
     "WindModel",
 ]
@@ -68,8 +69,9 @@ def _profile_scalar(h: float, amp: float, h_l: float, h_u: float, h_f: float) ->
     return 0.0
 
 
-def wind_profile_mps(h_m, data: VehicleData):
-    """Steady wind profile V_w(h) [m/s] (thesis Eq. 2.54).
+def wind_profile_mps(h_m, data: VehicleData, scale: float = 1.0, shift_m: float = 0.0):
+    """Steady wind profile V_w(h) [m/s] (thesis Eq. 2.54), optionally changed:
+    ``scale · V_w(h − shift_m)``.
 
     Parameters
     ----------
@@ -77,6 +79,9 @@ def wind_profile_mps(h_m, data: VehicleData):
         Altitude(s) [m], scalar or array.
     data
         Vehicle data (section ``wind.profile``: A, H_l, H_u, H_f).
+    scale, shift_m
+        Profile change (:class:`ProfileChange`): factor on the speed [1] (negative: the
+        opposite sense) and upward shift of the whole profile [m]. The defaults leave Eq. 2.54.
 
     Returns
     -------
@@ -98,8 +103,9 @@ def wind_profile_mps(h_m, data: VehicleData):
     """
     amp, h_l, h_u, h_f = _profile_constants(data)
     if np.ndim(h_m) == 0:
-        return _profile_scalar(float(h_m), amp, h_l, h_u, h_f)
-    h = np.asarray(h_m, dtype=float)
+        return scale * _profile_scalar(float(h_m) - shift_m, amp, h_l, h_u, h_f)
+    h = np.asarray(h_m, dtype=float) - shift_m
+    amp = scale * amp
     x = np.clip(h, 0.0, h_l) / h_l
     lead = 10.0 * amp * (x ** 0.9 - 0.9 * x)
     trail = 0.5 * amp * (1.0 - np.cos(math.pi / h_u * (h - h_f)))
@@ -325,6 +331,23 @@ class GustProfile:
         return 0.0
 
 
+@dataclass(frozen=True)
+class ProfileChange:
+    """A change of the steady profile: ``V(h) = scale · V_w(h − shift_m)``.
+
+    How a day-of-launch wind differs from the one the guidance was designed for (scenario
+    ``wind_change``, docs/GUIDANCE.md §5). ``scale`` [1] multiplies the speed (negative: the
+    opposite sense); ``shift_m`` [m] moves the whole profile up (down if negative).
+    """
+
+    scale: float = 1.0
+    shift_m: float = 0.0
+
+    def __post_init__(self):
+        if not (math.isfinite(self.scale) and math.isfinite(self.shift_m)):
+            raise ValueError("profile scale and shift must be finite")
+
+
 class WindComponents(NamedTuple):
     """The parts of the wind at one step [m/s], all along +z."""
 
@@ -347,6 +370,8 @@ class WindModel:
         Dryden intensity, one of :data:`INTENSITIES` (``"none"`` disables it).
     gust
         A discrete gust, or None.
+    change
+        Change of the steady profile (default: none, Eq. 2.54 as it is).
     seed
         Seed of the turbulence generator.
     dt_s
@@ -355,9 +380,11 @@ class WindModel:
     """
 
     def __init__(self, data: VehicleData, profile: bool = True, turbulence: str = "none",
-                 gust: GustProfile | None = None, seed: int = 0, dt_s: float | None = None):
+                 gust: GustProfile | None = None, seed: int = 0, dt_s: float | None = None,
+                 change: ProfileChange = ProfileChange()):
         self.profile = bool(profile)
         self.gust = gust
+        self.change = change
         self._profile_const = _profile_constants(data)
         self.turbulence = DrydenTurbulence(data, turbulence, seed, dt_s)
 
@@ -369,7 +396,9 @@ class WindModel:
         """Advance one step; return every part of the wind at time ``t_s`` [s], altitude
         ``h_m`` [m] and airspeed [m/s]. Raises ValueError on non-finite altitude/airspeed."""
         turb = self.turbulence.step(h_m, airspeed_mps)
-        prof = _profile_scalar(h_m, *self._profile_const) if self.profile else 0.0
+        prof = (self.change.scale * _profile_scalar(h_m - self.change.shift_m,
+                                                    *self._profile_const)
+                if self.profile else 0.0)
         gust = self.gust.velocity_mps(t_s) if self.gust is not None else 0.0
         return WindComponents(prof, turb, gust, prof + turb + gust)
 

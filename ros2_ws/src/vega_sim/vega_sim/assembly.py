@@ -22,7 +22,7 @@ from vega_model.parameters import ModelContext, default_context
 from vega_sim.scenario import Scenario
 from vega_sim.device_steps import ActuatorStep, InsStep
 from vega_sim.plant_step import PlantStep, PlantWind, parameter_track
-from vega_model.wind import GustProfile
+from vega_model.wind import GustProfile, ProfileChange
 
 __all__ = ["derive_seeds", "loop_timing", "make_plant", "make_ins", "make_actuator"]
 
@@ -72,7 +72,8 @@ def make_plant(scenario: Scenario, *, seed: int | None = None,
     wind = PlantWind(context.vehicle, track, profile=w.profile, turbulence=w.turbulence,
                      gust=gust, seed=derive_seeds(scenario.seed if seed is None else seed)[0],
                      thesis_constant_dryden=w.thesis_constant_dryden,
-                     dt_ms=timing.physics_dt_ms)
+                     dt_ms=timing.physics_dt_ms,
+                     change=ProfileChange(w.profile_scale, w.profile_shift_m))
     return PlantStep(track, wind, scenario.plant, scenario.initial_state.plant_state(),
                      scenario.initial_state.beta_rad)
 

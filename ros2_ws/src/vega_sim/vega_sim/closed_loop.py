@@ -36,6 +36,7 @@ from vega_bus.timing import LoopTiming
 from vega_gnc.controller_runtime import RuntimeLimits
 from vega_gnc.controller_table import ControllerTable, load_controller_table
 from vega_gnc.controller_step import ControllerStep
+from vega_gnc.guidance_reference import GuidanceReference, resolve_reference
 from vega_model.parameters import ModelContext, default_context
 from vega_sim.scenario import Scenario, load_scenario
 from vega_sim.device_steps import ActuatorStep, InsStep
@@ -44,14 +45,35 @@ from vega_sim.assembly import loop_timing, make_actuator, make_ins, make_plant
 
 from vega_sim.requirements import RequirementReport, RequirementSpec, evaluate_requirements
 
-__all__ = ["make_controller", "LoopSteps", "build_steps", "SimulationResult", "run_scenario"]
+__all__ = ["FROM_SCENARIO", "make_controller", "scenario_reference", "LoopSteps", "build_steps",
+           "SimulationResult", "run_scenario"]
+
+FROM_SCENARIO = "from scenario"
+"""``reference`` of :func:`make_controller`: the guidance reference the scenario names."""
 
 
 def make_controller(scenario: Scenario, table: ControllerTable, *,
                     context: ModelContext | None = None,
-                    limits: RuntimeLimits = RuntimeLimits()) -> ControllerStep:
-    """The controller node of a scenario with a controller table."""
-    return ControllerStep(table, loop_timing(scenario, context), limits)
+                    limits: RuntimeLimits = RuntimeLimits(),
+                    reference: GuidanceReference | None | str = FROM_SCENARIO
+                    ) -> ControllerStep:
+    """The controller node of a scenario with a controller table, tracking a guidance
+    reference (``reference``: a loaded one, None for none, or :data:`FROM_SCENARIO`: the one
+    the scenario names, :func:`scenario_reference`)."""
+    if isinstance(reference, str):
+        reference = scenario_reference(scenario)
+    return ControllerStep(table, loop_timing(scenario, context), limits, reference=reference)
+
+
+def scenario_reference(scenario: Scenario) -> GuidanceReference | None:
+    """The guidance reference a scenario flies (None for ``guidance: none``).
+
+    Raises
+    ------
+    BadInput
+        A reference file that does not load (one line naming it).
+    """
+    return resolve_reference(scenario.guidance)
 
 
 @dataclass(frozen=True)

@@ -38,7 +38,7 @@ from vega_model.dynamics import (STATES, NonlinearModel, angle_of_attack, linear
                                  nonlinear_outputs)
 from vega_model.parameters import ModelContext, ModelParameters
 from vega_model.vehicle_data import VehicleData
-from vega_model.wind import GustProfile, WindModel, turbulence_params
+from vega_model.wind import GustProfile, ProfileChange, WindModel, turbulence_params
 
 __all__ = [
     "PLANT_MODELS", "THESIS_DRYDEN_WEIGHT", "TruthOut", "LinearFrames", "parameters_at",
@@ -301,14 +301,18 @@ class PlantWind:
         (:func:`thesis_dryden_coefficients`).
     dt_ms
         Physics step [ms].
+    change
+        Change of the steady profile (:class:`vega_model.wind.ProfileChange`; default none).
     """
 
     def __init__(self, data: VehicleData, track: ParameterTrack, *, profile: bool,
                  turbulence: str, gust: GustProfile | None, seed: int,
-                 thesis_constant_dryden: bool = False, dt_ms: int = 1):
+                 thesis_constant_dryden: bool = False, dt_ms: int = 1,
+                 change: ProfileChange | None = None):
         self._model = WindModel(data, profile=profile,
                                 turbulence="none" if thesis_constant_dryden else turbulence,
-                                gust=gust, seed=seed, dt_s=dt_ms / 1000.0)
+                                gust=gust, seed=seed, dt_s=dt_ms / 1000.0,
+                                change=change if change is not None else ProfileChange())
         self._track = track
         self._dt_ms = int(dt_ms)
         # a WindModel with every part off returns exactly 0.0: skip it

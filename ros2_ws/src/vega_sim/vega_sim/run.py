@@ -27,5 +27,5 @@ def load_run(scenario_name: str, seed: int) -> tuple[Scenario, int, RunInfo]:
     scenario = load_scenario(scenario_name)
     seed = scenario.seed if seed == -1 else seed
     info = RunInfo(scenario.name, seed, scenario.t_start_ms, scenario.t_end_ms,
-                   loop_timing(scenario)).check()
+                   loop_timing(scenario), scenario.guidance).check()
     return scenario, seed, info

@@ -22,6 +22,12 @@ File format (SI units, radians; ``#`` comments allowed)::
       thesis_constant_dryden: true  # optional (false): the thesis' deterministic wind, below
       gust: null                    # or {start_s: 46.3, amplitude_mps: 9, duration_s: 2};
                                     # amplitude and duration default to vehicle.yaml wind.gust
+      profile_scale: 1.0            # optional (1): the flown profile is
+      profile_shift_m: 0.0          #   scale * V_w(h - shift), a changed day-of-launch wind
+    guidance: default               # optional (default): the wind-biased guidance reference
+                                    # the controller tracks: default (the installed one,
+                                    # designed for V_w(h)), none (zero bias), or a file path
+                                    # (relative: to the scenario file's folder)
     sensor_noise: true              # INS noise (thesis Eq. 4.18)
     seed: 1                         # integer >= 0
     uncertainty: {}                 # optional: deviations by name (vega_model.uncertainty)
@@ -52,9 +58,18 @@ from vega_core.errors import BadArgument, BadFile, BadInput
 from vega_model.uncertainty import UncertaintySet
 from vega_model.vehicle_data import VehicleData, load_vehicle_data
 from vega_model.wind import INTENSITIES
+from vega_gnc.guidance_reference import NO_GUIDANCE
 
-__all__ = ["GustSettings", "WindSettings", "InitialState", "Scenario", "scenario_names",
-           "scenario_path", "scenario_file", "load_scenario", "parse_scenario"]
+DEFAULT_GUIDANCE = "default"
+"""``guidance`` of a scenario that flies the installed guidance reference."""
+# Largest profile change a scenario may fly (assumption: beyond three times the design speed
+# or a 10 km shift it is another wind, not a change of this one).
+_MAX_PROFILE_SCALE = 3.0
+_MAX_PROFILE_SHIFT_M = 10_000.0
+
+__all__ = ["DEFAULT_GUIDANCE", "NO_GUIDANCE", "GustSettings", "WindSettings", "InitialState",
+           "Scenario", "scenario_names", "scenario_path", "scenario_file", "load_scenario",
+           "parse_scenario"]
 
 
 @dataclass(frozen=True)
@@ -74,6 +89,8 @@ class WindSettings:
     turbulence: str = "light"
     thesis_constant_dryden: bool = False
     gust: GustSettings | None = None
+    profile_scale: float = 1.0
+    profile_shift_m: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -119,6 +136,7 @@ class Scenario:
     sensor_noise: bool = True
     seed: int = 0
     uncertainty: tuple[tuple[str, float], ...] = ()
+    guidance: str = DEFAULT_GUIDANCE
 
     def __post_init__(self):
         try:
@@ -196,9 +214,9 @@ def scenario_file(name_or_path: str | Path) -> Path:
 # ----------------------------------------------------------------------------- parsing
 _TOP_REQUIRED = ("name", "description", "t_start_s", "t_end_s", "plant", "wind",
                  "sensor_noise", "seed")
-_TOP_OPTIONAL = ("initial_state", "uncertainty")
+_TOP_OPTIONAL = ("initial_state", "uncertainty", "guidance")
 _WIND_REQUIRED = ("profile", "turbulence", "gust")
-_WIND_OPTIONAL = ("thesis_constant_dryden",)
+_WIND_OPTIONAL = ("thesis_constant_dryden", "profile_scale", "profile_shift_m")
 _GUST_KEYS = ("start_s", "amplitude_mps", "duration_s")
 _INITIAL_KEYS = tuple(f.name for f in fields(InitialState))
 
@@ -302,7 +320,15 @@ def parse_scenario(text: str, source: str = "<scenario>",
         turbulence=_string(wind["turbulence"], "wind.turbulence", where),
         thesis_constant_dryden=_boolean(wind.get("thesis_constant_dryden", False),
                                         "wind.thesis_constant_dryden", where),
-        gust=gust)
+        gust=gust,
+        profile_scale=_number(wind.get("profile_scale", 1.0), "wind.profile_scale", where),
+        profile_shift_m=_number(wind.get("profile_shift_m", 0.0), "wind.profile_shift_m", where))
+    guidance = _string(tree.get("guidance", DEFAULT_GUIDANCE), "guidance", where)
+    if guidance not in (DEFAULT_GUIDANCE, NO_GUIDANCE):
+        if not guidance.strip():
+            raise where.error("guidance", "must be default, none or a file path, got ''")
+        if source != "<scenario>":  # a relative path is relative to the scenario's folder
+            guidance = str(Path(source).parent / guidance)
 
     uncertainty = tree.get("uncertainty")
     uncertainty = {} if uncertainty is None else uncertainty
@@ -320,7 +346,7 @@ def parse_scenario(text: str, source: str = "<scenario>",
         t_end_s=_number(tree["t_end_s"], "t_end_s", where),
         plant=plant, initial_state=state, wind=wind_settings,
         sensor_noise=_boolean(tree["sensor_noise"], "sensor_noise", where),
-        seed=seed, uncertainty=deviations)
+        seed=seed, uncertainty=deviations, guidance=guidance)
     try:
         return Scenario(**values)
     except ValueError as exc:  # the range checks of the constructor: name the file instead
@@ -376,6 +402,12 @@ def _validate(s: Scenario, data: VehicleData) -> None:
                                              f"got {s.wind.turbulence!r}")
     if s.wind.gust is not None and not s.wind.gust.duration_s > 0.0:
         raise _FieldError("wind.gust.duration_s", f"must be > 0, got {s.wind.gust.duration_s!r}")
+    if not abs(s.wind.profile_scale) <= _MAX_PROFILE_SCALE:
+        raise _FieldError("wind.profile_scale", f"must be within ±{_MAX_PROFILE_SCALE:g}, "
+                                                f"got {s.wind.profile_scale!r}")
+    if not abs(s.wind.profile_shift_m) <= _MAX_PROFILE_SHIFT_M:
+        raise _FieldError("wind.profile_shift_m", f"must be within ±{_MAX_PROFILE_SHIFT_M:g} m, "
+                                                  f"got {s.wind.profile_shift_m!r}")
     if not isinstance(s.sensor_noise, bool):
         raise _FieldError("sensor_noise", f"must be true or false, got {s.sensor_noise!r}")
     if isinstance(s.seed, bool) or not isinstance(s.seed, int) or s.seed < 0:

@@ -1,0 +1,25 @@
+"""The flight-design verdicts in the SIL: `vega sil run` with the shipped controller table and
+guidance reference passes `nominal` (the `make sil` default), `thesis`, `gust` and
+`wind_change` (exit 0); the no-bias case fails its load requirement (exit 1)."""
+
+import pytest
+
+from sil_flights import run_layout_in, vega_sil_run
+
+pytestmark = pytest.mark.ros
+
+
+@pytest.mark.parametrize("scenario", ["nominal", "thesis", "gust", "wind_change"])
+def test_design_scenarios_pass(tmp_path, scenario):
+    result = vega_sil_run(["--scenario", scenario, "--out", tmp_path])
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-2000:]
+    assert "verdict: PASS" in result.stdout
+    assert run_layout_in(tmp_path).bag_dir.is_dir()
+
+
+def test_no_bias_fails_the_load_requirement(tmp_path):
+    result = vega_sil_run(["--scenario", "nominal_no_bias", "--out", tmp_path])
+    assert result.returncode == 1, result.stderr[-2000:]
+    verdict = next(line for line in result.stdout.splitlines() if line.startswith("verdict:"))
+    assert verdict.startswith("verdict: FAIL: Load performance Qα:"), verdict
+    assert "Lateral" not in verdict and "Actuation" not in verdict
