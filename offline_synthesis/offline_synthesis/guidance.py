@@ -194,7 +194,8 @@ def design_reference(wind: DesignWind = DesignWind(),
     # The states as solved (not re-propagated from the feed-forward: the rigid body is
     # aerodynamically unstable, so an open-loop propagation amplifies the solver's residual);
     # the dynamics residual is recorded.
-    states = np.asarray(x.value)
+    states = np.array(x.value)
+    states[0] = 0.0             # the constraint x_0 = 0, exactly (not to the solver's 1e-13)
     b = np.asarray(beta.value)
     residual = states[1:] - (np.einsum("kij,kj->ki", phi[:-1], states[:-1])
                              + gb[:-1] * b[:-1, None] + gw[:-1] * vw[:-1, None])

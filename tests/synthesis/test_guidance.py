@@ -23,7 +23,8 @@ def params(design):
 
 def test_starts_on_the_nominal_and_keeps_half_the_drift_budget(design):
     w = GuidanceWeights()
-    assert np.abs(design.states[0]).max() < 1e-9
+    assert np.array_equal(design.states[0], np.zeros(4))
+    assert np.array_equal(design.reference[0], np.zeros(4))
     assert np.abs(design.states[:, 2]).max() <= w.z_max_m + 1e-6
     assert np.abs(design.states[:, 3]).max() <= w.z_dot_max_mps + 1e-6
     assert max(design.summary["dynamics_residual_max"]) < 1e-9

@@ -22,8 +22,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
-import yaml
-
 from vega_bus import topics, wire
 from vega_bus.records import ActuatorOut, CommandOut, InsOut, TruthOut
 from vega_bus.schedule import clock_frames
@@ -37,24 +35,11 @@ _ORDER = {t.name: i for i, t in enumerate(topics.ALL_TOPICS)}
 
 
 def scenario_yaml(scenario) -> str:
-    """YAML text of a scenario that :func:`vega_sim.scenario.parse_scenario` reads back."""
-    wind = scenario.wind
-    gust = None if wind.gust is None else {
-        "start_s": wind.gust.start_s, "amplitude_mps": wind.gust.amplitude_mps,
-        "duration_s": wind.gust.duration_s}
-    tree = {
-        "name": scenario.name, "description": scenario.description,
-        "t_start_s": scenario.t_start_s, "t_end_s": scenario.t_end_s,
-        "plant": scenario.plant,
-        "initial_state": {k: float(v) for k, v in vars(scenario.initial_state).items()},
-        "wind": {"profile": wind.profile, "turbulence": wind.turbulence,
-                 "thesis_constant_dryden": wind.thesis_constant_dryden, "gust": gust,
-                 "profile_scale": wind.profile_scale, "profile_shift_m": wind.profile_shift_m},
-        "sensor_noise": scenario.sensor_noise, "seed": scenario.seed,
-        "uncertainty": {k: float(v) for k, v in scenario.uncertainty},
-        "guidance": scenario.guidance,
-    }
-    return yaml.safe_dump(tree, sort_keys=False)
+    """YAML text of a scenario that :func:`vega_sim.scenario.parse_scenario` reads back
+    (:func:`vega_sim.scenario.dump_scenario`)."""
+    from vega_sim.scenario import dump_scenario
+
+    return dump_scenario(scenario)
 
 
 def _stamp(msg_time, t_ms: int) -> None:

@@ -24,7 +24,8 @@ from vega_sim.device_steps import ActuatorStep, InsStep
 from vega_sim.plant_step import PlantStep, PlantWind, parameter_track
 from vega_model.wind import GustProfile, ProfileChange
 
-__all__ = ["derive_seeds", "loop_timing", "make_plant", "make_ins", "make_actuator"]
+__all__ = ["derive_seeds", "loop_timing", "make_plant", "initial_plant_state", "make_ins",
+           "make_actuator"]
 
 
 def derive_seeds(seed: int) -> tuple[int, int]:
@@ -74,8 +75,34 @@ def make_plant(scenario: Scenario, *, seed: int | None = None,
                      thesis_constant_dryden=w.thesis_constant_dryden,
                      dt_ms=timing.physics_dt_ms,
                      change=ProfileChange(w.profile_scale, w.profile_shift_m))
-    return PlantStep(track, wind, scenario.plant, scenario.initial_state.plant_state(),
+    return PlantStep(track, wind, scenario.plant, initial_plant_state(scenario, context),
                      scenario.initial_state.beta_rad)
+
+
+def initial_plant_state(scenario: Scenario, context: ModelContext | None = None
+                        ) -> tuple[float, ...]:
+    """The plant state at t_start: the scenario's ``initial_state`` taken as deviations from
+    the flight its guidance reference describes (docs/GUIDANCE.md §5), so that a scenario cut
+    to start mid-flight starts on the reference; with ``guidance: none`` (or a reference that
+    is 0 there, as at lift-off) it is ``initial_state`` itself.
+
+    The reference holds what the INS measures on the reference flight; the rigid states are
+    recovered by the INS kinematics of thesis Eqs. 2.33-2.36 with the bending coordinates 0:
+    θ = θ_INS, θ̇ = θ̇_INS, z = z_INS + l·θ, ż = ż_INS + l·θ̇, l = x_INS − x_CG at t_start."""
+    from vega_gnc.guidance_reference import resolve_reference
+
+    x0 = list(scenario.initial_state.plant_state())
+    reference = resolve_reference(scenario.guidance)
+    if reference is None:
+        return tuple(x0)
+    context = context if context is not None else default_context()
+    th, thd, z_ins, zd_ins, _ = reference.at(scenario.t_start_s)
+    if th == thd == z_ins == zd_ins == 0.0:
+        return tuple(x0)
+    lever = context.parameters(scenario.t_start_s).l_ins_m
+    for i, value in enumerate((th, thd, z_ins + lever * th, zd_ins + lever * thd)):
+        x0[i] += float(value)
+    return tuple(x0)
 
 
 def make_ins(scenario: Scenario, *, seed: int | None = None,

@@ -13,7 +13,8 @@ File format (SI units, radians; ``#`` comments allowed)::
     t_start_s: 10.0                 # whole 10 ms frames, 0 <= t_start < t_end, both within
     t_end_s: 90.0                   # the flight-condition table (t_end <= its end - 1 frame)
     plant: linear                   # linear | nonlinear
-    initial_state:                  # optional; missing states are 0
+    initial_state:                  # optional; missing states are 0; deviations from the
+                                    # guidance reference flight at t_start (assembly.py)
       theta_rad: 0.0349             # also theta_dot_radps, z_m, z_dot_mps, q1, q2, q1_dot,
                                     # q2_dot, beta_rad (nozzle at rest)
     wind:
@@ -69,7 +70,7 @@ _MAX_PROFILE_SHIFT_M = 10_000.0
 
 __all__ = ["DEFAULT_GUIDANCE", "NO_GUIDANCE", "GustSettings", "WindSettings", "InitialState",
            "Scenario", "scenario_names", "scenario_path", "scenario_file", "load_scenario",
-           "parse_scenario"]
+           "parse_scenario", "dump_scenario"]
 
 
 @dataclass(frozen=True)
@@ -353,6 +354,29 @@ def parse_scenario(text: str, source: str = "<scenario>",
         if isinstance(exc.__cause__, _FieldError):
             raise BadFile(f"{source}: {exc.__cause__}") from None
         raise
+
+
+def dump_scenario(scenario: Scenario) -> str:
+    """YAML text of a scenario that :func:`parse_scenario` reads back (the same scenario)."""
+    wind = scenario.wind
+    gust = None if wind.gust is None else {
+        "start_s": wind.gust.start_s, "amplitude_mps": wind.gust.amplitude_mps,
+        "duration_s": wind.gust.duration_s}
+    tree = {
+        "name": scenario.name, "description": scenario.description,
+        "t_start_s": scenario.t_start_s, "t_end_s": scenario.t_end_s,
+        "plant": scenario.plant,
+        "initial_state": {k: float(v) for k, v in vars(scenario.initial_state).items()},
+        "wind": {"profile": wind.profile, "turbulence": wind.turbulence,
+                 "thesis_constant_dryden": wind.thesis_constant_dryden, "gust": gust,
+                 "profile_scale": wind.profile_scale, "profile_shift_m": wind.profile_shift_m},
+        "sensor_noise": scenario.sensor_noise, "seed": scenario.seed,
+        "uncertainty": {k: float(v) for k, v in scenario.uncertainty},
+        "guidance": scenario.guidance,
+    }
+    import yaml
+
+    return yaml.safe_dump(tree, sort_keys=False)
 
 
 def _table_time_range_s() -> tuple[float, float]:

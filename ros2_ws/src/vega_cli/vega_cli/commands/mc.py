@@ -1,0 +1,126 @@
+"""``vega mc``: Monte Carlo dispersion campaigns (offline_synthesis.campaign, campaign_run).
+
+``vega mc run --scenario NAME|PATH --runs N [--dispersions FILE] [--seed S] [--out DIR]
+[--table FILE] [--workers K | --scheduler ADDRESS] [--resume DIR]`` flies N dispersed copies of
+the scenario in process on a Dask cluster (a LocalCluster of K worker processes on 127.0.0.1 by
+default), writes every finished sample as it comes, then ``results.parquet``, ``summary.json``,
+``summary.md`` and plots. Exit status: 0 if every flight passed, 1 if one failed, 2 on bad
+input (checked before anything starts).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+from vega_core.errors import BadArgument
+
+__all__ = ["register"]
+
+DEFAULT_OUT = "campaigns"
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
+    return value
+
+
+def _run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from offline_synthesis.campaign import load_dispersions, parse_dispersions
+    from offline_synthesis.campaign_run import (plot_campaign, read_rows, run_campaign,
+                                                summarise, summary_markdown, write_results)
+    from vega_bringup.planning import _checked_seed
+    from vega_gnc.controller_table import default_table_path, load_controller_table
+    from vega_sim.closed_loop import scenario_reference
+    from vega_sim.scenario import load_scenario, parse_scenario
+
+    if args.workers is not None and args.scheduler:
+        raise BadArgument("--workers and --scheduler exclude each other")
+    t0 = time.monotonic()
+    if args.resume:
+        out = Path(args.resume)
+        path = out / "campaign.json"
+        if not path.is_file():
+            raise BadArgument(f"--resume {out}: no campaign.json (not a campaign directory)")
+        inputs = json.loads(path.read_text())
+        scenario = parse_scenario(inputs["scenario_yaml"], f"{path}: scenario_yaml")
+        disp = parse_dispersions(inputs["dispersions_yaml"], inputs["dispersions_path"])
+        seed, runs, table_path = inputs["seed"], inputs["runs"], Path(inputs["table"])
+    else:
+        if args.runs is None:
+            raise BadArgument("--runs N is required (or --resume DIR)")
+        scenario = load_scenario(args.scenario)
+        disp = load_dispersions(args.dispersions)
+        seed = _checked_seed(args.seed) or 0
+        runs = args.runs
+        table_path = Path(args.table) if args.table else default_table_path()
+        out = Path(args.out) / f"{scenario.name}-seed{seed}-n{runs}" if args.out_is_parent \
+            else Path(args.out)
+    load_controller_table(table_path)        # a bad table: one line, exit 2, before start
+    scenario_reference(scenario)             # likewise the guidance reference it names
+    rows = run_campaign(scenario, disp, runs=runs, seed=seed, out=out,
+                        table_path=table_path.resolve(), workers=args.workers,
+                        scheduler=args.scheduler, resume=bool(args.resume))
+    inputs = json.loads((out / "campaign.json").read_text())
+    write_results(out, rows)
+    summary = summarise(rows, inputs, wall_s=time.monotonic() - t0)
+    (out / "summary.json").write_text(json.dumps(summary, indent=1, sort_keys=True) + "\n")
+    (out / "summary.md").write_text(summary_markdown(summary))
+    plot_campaign(out, read_rows(out), summary)
+    print(summary_markdown(summary), end="")
+    print(f"vega mc: {out}/ (results.parquet, summary.json, summary.md, histograms.png, "
+          f"sensitivity_q_alpha.png)")
+    return 0 if summary["passed"] == summary["runs"] else 1
+
+
+def _no_action(args) -> int:
+    raise BadArgument("vega mc: choose an action (run)")
+
+
+def register(subparsers) -> None:
+    """Add the ``mc`` sub-command (action ``run``)."""
+    parser = subparsers.add_parser(
+        "mc", help="Monte Carlo dispersion campaigns on Dask",
+        description="Fly dispersed copies of a scenario in process on a Dask cluster and "
+                    "state the pass fraction with its confidence bounds.")
+    parser.set_defaults(func=_no_action)
+    actions = parser.add_subparsers(dest="action", metavar="ACTION")
+    run = actions.add_parser(
+        "run", help="fly a campaign",
+        description="N dispersed flights of a scenario (sample i depends on the campaign seed "
+                    "and i only). Exit 0 all passed, 1 a flight failed, 2 bad input.")
+    run.add_argument("--scenario", default="nominal", metavar="NAME|PATH",
+                     help="shipped scenario name or YAML file (default: nominal)")
+    run.add_argument("--runs", type=_positive_int, default=None, metavar="N",
+                     help="number of dispersed flights")
+    run.add_argument("--dispersions", default=None, metavar="FILE",
+                     help="dispersion file (default: the shipped "
+                          "offline_synthesis/data/dispersions.yaml)")
+    run.add_argument("--seed", default=None, metavar="S", help="campaign seed (default 0)")
+    run.add_argument("--out", default=None, metavar="DIR",
+                     help=f"campaign directory (must not exist or be empty; default: "
+                          f"{DEFAULT_OUT}/<scenario>-seed<S>-n<N>)")
+    run.add_argument("--table", default=None, metavar="FILE",
+                     help="controller table (default: the installed one)")
+    run.add_argument("--workers", type=_positive_int, default=None, metavar="K",
+                     help="worker processes of the LocalCluster (default: one per core)")
+    run.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                     help="run on an existing Dask scheduler (e.g. tcp://127.0.0.1:8786)")
+    run.add_argument("--resume", default=None, metavar="DIR",
+                     help="finish the campaign in DIR (its own inputs; the others are ignored)")
+    run.set_defaults(func=_run_entry)
+
+
+def _run_entry(args: argparse.Namespace) -> int:
+    args.out_is_parent = args.out is None
+    if args.out is None:
+        args.out = DEFAULT_OUT
+    return _run(args)

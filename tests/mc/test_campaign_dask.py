@@ -1,0 +1,140 @@
+"""Campaigns on real Dask clusters (every server on 127.0.0.1): a LocalCluster of worker
+processes, a `dask scheduler` with two `dask worker` processes, a campaign killed with SIGKILL
+and resumed, and bad input refused before anything starts."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pyarrow.parquet as pq
+import pytest
+
+from sil_flights import write_short_scenario
+from vega_cli import cli
+
+RUNS = 6
+
+
+def _rows(directory):
+    """The results table without the wall time, as JSON text (NaN compares equal)."""
+    rows = pq.read_table(directory / "results.parquet").to_pylist()
+    for r in rows:
+        r.pop("wall_s")
+    return json.dumps(rows, sort_keys=True)
+
+
+def _mc(*args):
+    return [sys.executable, "-m", "vega_cli.cli", "mc", "run", *map(str, args)]
+
+
+@pytest.fixture(scope="module")
+def scenario(tmp_path_factory):
+    return write_short_scenario(tmp_path_factory.mktemp("sc"), "nominal", "nominal_mc_short",
+                                40.0, 41.0)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory, scenario):
+    """The campaign flown on a LocalCluster of ONE worker."""
+    out = tmp_path_factory.mktemp("mc") / "one"
+    code = cli.main(["mc", "run", "--scenario", str(scenario), "--runs", str(RUNS), "--seed", "4",
+                     "--workers", "1", "--out", str(out)])
+    assert code in (0, 1)
+    return out
+
+
+def test_same_samples_whatever_the_worker_count(reference, scenario, tmp_path, capsys):
+    out = tmp_path / "two"
+    code = cli.main(["mc", "run", "--scenario", str(scenario), "--runs", str(RUNS), "--seed", "4",
+                     "--workers", "2", "--out", str(out)])
+    text = capsys.readouterr().out
+    assert code in (0, 1) and "Dask LocalCluster, 2 workers" in text
+    assert _rows(out) == _rows(reference)
+    rows = json.loads(_rows(out))
+    assert [r["sample"] for r in rows] == list(range(RUNS))
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["runs"] == RUNS and summary["passed"] == sum(
+        r["verdict"] == "pass" for r in rows)
+    for name in ("histograms.png", "sensitivity_q_alpha.png", "summary.md"):
+        assert (out / name).stat().st_size > 0
+
+
+def test_scheduler_and_worker_processes_on_loopback(reference, scenario, tmp_path):
+    sched_file = tmp_path / "scheduler.json"
+    dask = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
+    procs = [subprocess.Popen(dask + ["--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                                      "--scheduler-file", str(sched_file)],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        deadline = time.monotonic() + 60
+        while not sched_file.exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        address = json.loads(sched_file.read_text())["address"]
+        assert address.startswith("tcp://127.0.0.1:")
+        for _ in range(2):
+            procs.append(subprocess.Popen(
+                [sys.executable, "-m", "distributed.cli.dask_worker", address, "--nworkers", "1",
+                 "--nthreads", "1", "--no-dashboard", "--host", "127.0.0.1"],
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        out = tmp_path / "remote"
+        result = subprocess.run(_mc("--scenario", scenario, "--runs", RUNS, "--seed", 4,
+                                    "--scheduler", address, "--out", out),
+                                capture_output=True, text=True, timeout=300)
+        assert result.returncode in (0, 1), result.stderr
+        assert f"Dask scheduler {address}" in result.stdout
+        assert _rows(out) == _rows(reference)
+    finally:
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+
+def test_killed_campaign_resumes_without_reflying(reference, scenario, tmp_path):
+    out = tmp_path / "killed"
+    proc = subprocess.Popen(_mc("--scenario", scenario, "--runs", RUNS, "--seed", 4,
+                                "--workers", "1", "--out", out),
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        if len(list((out / "samples").glob("*.json"))) >= 2 if (out / "samples").is_dir() else 0:
+            break
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait(timeout=30)
+    kept = sorted(p.name for p in (out / "samples").glob("*.json"))
+    assert 2 <= len(kept) < RUNS, kept
+    mtimes = {p.name: p.stat().st_mtime_ns for p in (out / "samples").glob("*.json")}
+    result = subprocess.run(_mc("--resume", out), capture_output=True, text=True, timeout=300)
+    assert result.returncode in (0, 1), result.stderr
+    assert f"{len(kept)} already flown, {RUNS - len(kept)} to fly" in result.stdout
+    assert all((out / "samples" / n).stat().st_mtime_ns == t for n, t in mtimes.items())
+    assert _rows(out) == _rows(reference)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--runs", "0"], "argument --runs: must be >= 1"),
+    (["--runs", "3", "--dispersions", "/nonexistent.yaml"], "/nonexistent.yaml"),
+    (["--runs", "3", "--scenario", "no_such"], "unknown scenario 'no_such'"),
+    (["--runs", "3", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"],
+     "--workers and --scheduler exclude each other"),
+    (["--runs", "3", "--table", "/nonexistent.npz"], "/nonexistent.npz: no such file"),
+    (["--runs", "3", "--seed", "-4"], "--seed must be an integer >= 0"),
+])
+def test_bad_input_one_line_exit_2_nothing_started(tmp_path, capsys, args, message):
+    out = tmp_path / "c"
+    try:
+        code = cli.main(["mc", "run", *args, "--out", str(out)])
+    except SystemExit as exc:       # argparse's usage errors exit from the parser
+        code = exc.code
+    assert code == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1, err
+    assert not out.exists()
