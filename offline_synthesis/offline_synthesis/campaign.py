@@ -224,13 +224,13 @@ def sample_scenario(base, disp: Dispersions, campaign_seed: int, index: int):
     values: dict[str, Any] = {}
     deviations = {}
     for name, kind in disp.uncertainty:
-        u, n = rng.random(), rng.standard_normal()       # always two draws per parameter
+        u, n = float(rng.random()), float(rng.standard_normal())  # always two draws each
         par = uset[name]
         deviations[name] = _draw_deviation(kind, par.lower, par.upper, u, n)
         if name == "delay_s":   # the loop runs on a millisecond grid (vega_bus.timing)
             deviations[name] = round(deviations[name] * 1000.0) / 1000.0
         values[name] = deviations[name]
-    u_scale, u_shift, u_rev, u_gust, u_amp, u_start = rng.random(6)
+    u_scale, u_shift, u_rev, u_gust, u_amp, u_start = (float(u) for u in rng.random(6))
     scale = disp.profile_scale[0] + (disp.profile_scale[1] - disp.profile_scale[0]) * u_scale
     if u_rev < disp.profile_reverse_probability:
         scale = -scale
@@ -242,7 +242,7 @@ def sample_scenario(base, disp: Dispersions, campaign_seed: int, index: int):
         gust = GustSettings(start_s=round(s_lo + (s_hi - s_lo) * u_start, 3),
                             amplitude_mps=lo + (hi - lo) * u_amp,
                             duration_s=load_vehicle_data()["wind.gust.duration_s"])
-    theta0 = math.radians(disp.initial_pitch_sigma_deg) * rng.standard_normal()
+    theta0 = math.radians(disp.initial_pitch_sigma_deg) * float(rng.standard_normal())
     seed = int(rng.integers(0, 2 ** 63 - 1))
     values.update(profile_scale=scale, profile_shift_m=shift,
                   gust_amplitude_mps=0.0 if gust is None else gust.amplitude_mps,

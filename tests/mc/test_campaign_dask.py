@@ -138,3 +138,20 @@ def test_bad_input_one_line_exit_2_nothing_started(tmp_path, capsys, args, messa
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1, err
     assert not out.exists()
+
+
+def test_rerun_of_a_sample_through_the_ros_nodes_gives_its_row(reference, tmp_path, capsys):
+    """`vega mc rerun`: sample 1 of the campaign flown by the five SIL processes; the metrics
+    computed from its bag equal the campaign row (the same code on bit-identical data)."""
+    code = cli.main(["mc", "rerun", str(reference), "--sample", "1", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "every metric of the campaign row identical" in out
+    assert (tmp_path / "nominal_mc_short_mc1.yaml").is_file()
+
+
+def test_rerun_bad_input(reference, tmp_path, capsys):
+    assert cli.main(["mc", "rerun", str(reference), "--sample", str(RUNS)]) == 2
+    assert "the campaign has samples 0-5" in capsys.readouterr().err
+    assert cli.main(["mc", "rerun", str(tmp_path), "--sample", "0"]) == 2
+    assert "not a campaign directory" in capsys.readouterr().err

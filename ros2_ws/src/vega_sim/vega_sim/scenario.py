@@ -360,17 +360,18 @@ def dump_scenario(scenario: Scenario) -> str:
     """YAML text of a scenario that :func:`parse_scenario` reads back (the same scenario)."""
     wind = scenario.wind
     gust = None if wind.gust is None else {
-        "start_s": wind.gust.start_s, "amplitude_mps": wind.gust.amplitude_mps,
-        "duration_s": wind.gust.duration_s}
+        "start_s": float(wind.gust.start_s), "amplitude_mps": float(wind.gust.amplitude_mps),
+        "duration_s": float(wind.gust.duration_s)}
     tree = {
         "name": scenario.name, "description": scenario.description,
-        "t_start_s": scenario.t_start_s, "t_end_s": scenario.t_end_s,
+        "t_start_s": float(scenario.t_start_s), "t_end_s": float(scenario.t_end_s),
         "plant": scenario.plant,
         "initial_state": {k: float(v) for k, v in vars(scenario.initial_state).items()},
         "wind": {"profile": wind.profile, "turbulence": wind.turbulence,
                  "thesis_constant_dryden": wind.thesis_constant_dryden, "gust": gust,
-                 "profile_scale": wind.profile_scale, "profile_shift_m": wind.profile_shift_m},
-        "sensor_noise": scenario.sensor_noise, "seed": scenario.seed,
+                 "profile_scale": float(wind.profile_scale),
+                 "profile_shift_m": float(wind.profile_shift_m)},
+        "sensor_noise": scenario.sensor_noise, "seed": int(scenario.seed),
         "uncertainty": {k: float(v) for k, v in scenario.uncertainty},
         "guidance": scenario.guidance,
     }

@@ -1,5 +1,8 @@
 """``vega mc``: Monte Carlo dispersion campaigns (offline_synthesis.campaign, campaign_run).
 
+``vega mc rerun DIR --sample I [--out RUNDIR]`` flies that sample through the ROS 2 nodes (``vega
+sil run`` on the sample's scenario) and checks that its bag's metrics equal the campaign row.
+
 ``vega mc run --scenario NAME|PATH --runs N [--dispersions FILE] [--seed S] [--out DIR]
 [--table FILE] [--workers K | --scheduler ADDRESS] [--resume DIR]`` flies N dispersed copies of
 the scenario in process on a Dask cluster (a LocalCluster of K worker processes on 127.0.0.1 by
@@ -81,8 +84,58 @@ def _run(args: argparse.Namespace) -> int:
     return 0 if summary["passed"] == summary["runs"] else 1
 
 
+def _rerun(args: argparse.Namespace) -> int:
+    """``vega mc rerun DIR --sample I``: the sample through the ROS 2 nodes; its bag's metrics
+    against the campaign's row."""
+    import math
+    from pathlib import Path
+
+    from offline_synthesis.campaign import flight_metrics, parse_dispersions, sample_scenario
+    from vega_bags import bagio
+    from vega_bags.bagcheck import bag_result
+    from vega_cli import cli
+    from vega_sim.scenario import dump_scenario, parse_scenario
+
+    camp = Path(args.dir)
+    path = camp / "campaign.json"
+    if not path.is_file():
+        raise BadArgument(f"{camp}: no campaign.json (not a campaign directory)")
+    inputs = json.loads(path.read_text())
+    if not 0 <= args.sample < inputs["runs"]:
+        raise BadArgument(f"--sample {args.sample}: the campaign has samples "
+                          f"0-{inputs['runs'] - 1}")
+    row_path = camp / "samples" / f"{args.sample:06d}.json"
+    if not row_path.is_file():
+        raise BadArgument(f"--sample {args.sample}: not flown yet in {camp} (--resume it first)")
+    row = json.loads(row_path.read_text())
+    base = parse_scenario(inputs["scenario_yaml"], f"{path}: scenario_yaml")
+    disp = parse_dispersions(inputs["dispersions_yaml"], inputs["dispersions_path"])
+    scenario, _ = sample_scenario(base, disp, inputs["seed"], args.sample)
+    out = Path(args.out) if args.out else camp / "reruns"
+    out.mkdir(parents=True, exist_ok=True)
+    scenario_file = out / f"{scenario.name}.yaml"
+    scenario_file.write_text(dump_scenario(scenario))
+    run_id = f"{scenario.name}-seed{scenario.seed}"
+    status = cli.main(["sil", "run", "--scenario", str(scenario_file), "--table",
+                       inputs["table"], "--out", str(out), "--run-id", run_id])
+    bag_dir = out / run_id / "bag"
+    if status not in (0, 1) or not bag_dir.is_dir():
+        print(f"vega mc rerun: the SIL run ended with exit status {status}; no comparison")
+        return status if status else 1
+    got = flight_metrics(bag_result(bagio.read_run_bag(bag_dir)))
+    differ = [k for k, v in got.items()
+              if not (v == row[k] or (isinstance(v, float) and math.isnan(v)
+                                      and math.isnan(row[k])))]
+    for k in differ:
+        print(f"  {k}: campaign {row[k]!r}, SIL bag {got[k]!r}")
+    print(f"vega mc rerun: sample {args.sample} through the ROS 2 nodes ({bag_dir}): "
+          + ("every metric of the campaign row identical" if not differ
+             else f"{len(differ)} metrics differ"))
+    return 0 if not differ else 1
+
+
 def _no_action(args) -> int:
-    raise BadArgument("vega mc: choose an action (run)")
+    raise BadArgument("vega mc: choose an action (run, rerun)")
 
 
 def register(subparsers) -> None:
@@ -117,6 +170,17 @@ def register(subparsers) -> None:
     run.add_argument("--resume", default=None, metavar="DIR",
                      help="finish the campaign in DIR (its own inputs; the others are ignored)")
     run.set_defaults(func=_run_entry)
+    rerun = actions.add_parser(
+        "rerun", help="fly one campaign sample through the ROS 2 nodes",
+        description="Fly sample I of the campaign in DIR with `vega sil run` (the dispersed "
+                    "scenario written to OUT), then compare the bag's metrics with the "
+                    "campaign's row. Exit 0 identical, 1 different (or the run failed), 2 bad "
+                    "input.")
+    rerun.add_argument("dir", metavar="DIR", help="campaign directory")
+    rerun.add_argument("--sample", type=int, required=True, metavar="I", help="sample index")
+    rerun.add_argument("--out", default=None, metavar="RUNDIR",
+                       help="where the scenario and the run go (default: DIR/reruns)")
+    rerun.set_defaults(func=_rerun)
 
 
 def _run_entry(args: argparse.Namespace) -> int:
