@@ -267,6 +267,49 @@ def test_stopped_recorder_still_closes_its_bag(tmp_path, short_scenario, pd_tabl
             in health["coverage"]["detail"]), health["coverage"]
 
 
+def test_killed_recorder_bag_is_repaired(tmp_path, short_scenario, pd_table):
+    """The recorder killed mid-flight (SIGKILL: nothing it can handle): the run fails naming
+    it and says how to recover; the bag has no metadata.yaml, `vega bag repair` rebuilds it
+    from the chunks flushed every second and the run metadata written at the start, and
+    `vega check` reads it (incomplete run, complete metadata; the truth up to at most ≈ 1 s
+    before the kill)."""
+    proc = start_vega_sil_run(["--scenario", short_scenario, "--table", pd_table,
+                               "--out", tmp_path, "--realtime"])
+    try:
+        stderr = []
+        for line in proc.stderr:
+            stderr.append(line)
+            if "start barrier complete" in line:
+                break
+        nodes = children_of(proc.pid)
+        (recorder,) = [p for p, argv in nodes.items() if argv[1].endswith("/recorder")]
+        assert wait_for_sim_time(12.5, still_running=lambda: proc.poll() is None)
+        os.kill(recorder, signal.SIGKILL)
+        rest = proc.communicate(timeout=120)[1]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    err = "".join(stderr) + rest
+    assert proc.returncode == 1, err
+    assert "vega bag repair" in err, err
+    layout = run_layout_in(tmp_path)
+    assert not (layout.bag_dir / "metadata.yaml").exists()
+    repair = subprocess.run([sys.executable, "-m", "vega_cli.cli", "bag", "repair",
+                             layout.bag_dir], capture_output=True, text=True, timeout=120)
+    assert repair.returncode == 0, repair.stderr
+    truth = bagio.read_run_bag(layout.bag_dir)[topics.TRUTH.name]
+    # killed at ≥ 12.5 s of a run from 10 s: at least 1.5 s of it is on disk
+    assert truth["stamp_ns"][-1] >= 11.4e9 and len(truth) < SHORT_FRAMES
+    verdict = tmp_path / "verdict.json"
+    check = subprocess.run([sys.executable, "-m", "vega_cli.cli", "check", layout.bag_dir,
+                            "--json", verdict], capture_output=True, text=True, timeout=300,
+                           check=False)
+    assert check.returncode == 1, check.stdout + check.stderr
+    health = {h["key"]: h for h in json.loads(verdict.read_text())["health"]}
+    assert health["metadata"]["passed"] and not health["coverage"]["passed"]
+
+
 def test_malformed_table_in_the_node_names_it(tmp_path, short_scenario):
     """The supervisor with the real nodes and a malformed table in the parameters (the
     command line rejects it before starting; this is the path of a table broken later, or of

@@ -36,6 +36,7 @@ lengths in :attr:`TopicColumns.counts`. ``header.frame_id`` is not kept.
 from __future__ import annotations
 
 import hashlib
+import json
 import subprocess
 from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
@@ -54,6 +55,7 @@ from vega_bus.timing import NS_PER_S
 __all__ = ["BagError", "META_SCENARIO", "META_SCENARIO_YAML", "META_SEED",
            "META_CONTROLLER_TABLE", "META_CONTROLLER_TABLE_SHA256", "META_GIT_REVISION",
            "META_GUIDANCE_REFERENCE", "META_GUIDANCE_REFERENCE_SHA256",
+           "RUN_METADATA_FILE", "FLUSH_PERIOD_NS", "run_metadata_path",
            "REQUIRED_METADATA", "vega_typestore", "topic_qos", "run_metadata",
            "git_revision", "file_sha256", "RunBagWriter", "TopicColumns", "RunBag",
            "read_run_bag", "iter_raw_messages", "cdr_offsets"]
@@ -74,6 +76,16 @@ REQUIRED_METADATA = (META_SCENARIO, META_SCENARIO_YAML, META_SEED, META_CONTROLL
 """custom_data keys every run bag carries (the writer refuses to open without them)."""
 
 _VEGA_TYPES = tuple(sorted({t.type_name for t in topics.DATA_TOPICS}))
+
+RUN_METADATA_FILE = "vega_run_metadata.json"
+"""The run metadata, written beside the MCAP file when the bag is opened (crash safety)."""
+FLUSH_PERIOD_NS = 1_000_000_000
+"""Log time between two chunk flushes of :class:`RunBagWriter` (1 s)."""
+
+
+def run_metadata_path(bag_dir: str | Path) -> Path:
+    """Path of the early run-metadata file of a bag directory."""
+    return Path(bag_dir) / RUN_METADATA_FILE
 
 
 class BagError(BadFile):
@@ -225,6 +237,13 @@ class RunBagWriter:
     The bag is created by :meth:`open` (called by ``with``). :meth:`close` writes the MCAP
     summary and ``metadata.yaml``; leaving the ``with`` block closes it even when an exception
     is raised, so that the messages written so far stay readable.
+
+    Crash safety (a writer killed before :meth:`close`): :meth:`open` writes the run metadata
+    at once to ``RUN_METADATA_FILE`` beside the MCAP file, and the MCAP chunk in progress is
+    closed and handed to the operating system every :data:`FLUSH_PERIOD_NS` of log time (the
+    rosbags writer alone closes a chunk every 1 MiB, ≈ 40 s of a run). A killed writer so
+    loses at most the last second of log time; :func:`vega_bags.repair.repair_bag` rebuilds
+    the summary and ``metadata.yaml`` from what is on disk.
     """
 
     def __init__(self, path: str | Path, metadata: Mapping[str, Any]):
@@ -241,6 +260,7 @@ class RunBagWriter:
             raise ValueError(f"bag metadata: missing {', '.join(missing)}")
         self.metadata = meta
         self._writer = None
+        self._next_flush_ns = None
         self._connections: dict[str, Any] = {}
         self.counts: dict[str, int] = {}
 
@@ -277,7 +297,19 @@ class RunBagWriter:
                 offered_qos_profiles=[topic_qos(topic)])
             self.counts[topic.name] = 0
         self._writer = writer
+        run_metadata_path(self.path).write_text(json.dumps(
+            {"format": "vega_run_metadata", "version": 1, "custom_data": self.metadata},
+            indent=1, sort_keys=True) + "\n")
+        self.flush()
         return self
+
+    def flush(self) -> None:
+        """Close the MCAP chunk in progress (schemas and channels go with the first) and hand
+        the file's buffer to the operating system: what was written survives the process."""
+        storage = self._writer.storage
+        if storage.chunk.bio.tell():
+            storage.close_chunk()
+        storage.bio.flush()
 
     def write(self, topic: str, log_time_ns: int, data: bytes | memoryview) -> None:
         """Append one message: its topic, log time (sim-time stamp) [ns], raw CDR bytes.
@@ -294,8 +326,14 @@ class RunBagWriter:
         except KeyError:
             raise ValueError(f"bag {self.path}: topic {topic!r} is not a topic of the graph "
                              f"({', '.join(self._connections)})") from None
-        self._writer.write(connection, int(log_time_ns), data)
+        t = int(log_time_ns)
+        self._writer.write(connection, t, data)
         self.counts[topic] += 1
+        if self._next_flush_ns is None:
+            self._next_flush_ns = t + FLUSH_PERIOD_NS
+        elif t >= self._next_flush_ns:
+            self.flush()
+            self._next_flush_ns = t + FLUSH_PERIOD_NS
 
     def close(self) -> None:
         """Write the MCAP summary and ``metadata.yaml``; idempotent."""
@@ -590,7 +628,8 @@ def _open_reader(path: Path):
     if not (path / "metadata.yaml").is_file():
         if any(path.glob("*.mcap")):
             raise BagError(f"bag {path}: no metadata.yaml next to its MCAP file: the bag was "
-                           f"not closed (its recorder was killed?)")
+                           f"not closed (its recorder was killed?); `vega bag repair {path}` "
+                           f"recovers what was written")
         raise BagError(f"bag {path}: not a rosbag2 directory (no metadata.yaml)")
     reader = Reader(path)
     try:

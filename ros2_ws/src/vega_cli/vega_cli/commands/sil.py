@@ -69,8 +69,12 @@ def _run(args):
     outcome = supervisor.run()
     if not outcome.ok:
         _say(f"error: {outcome.message}")
-        if plan.layout.bag_dir.exists():
+        if (plan.layout.bag_dir / "metadata.yaml").is_file():
             _say(f"partial bag: {plan.layout.bag_dir}; node logs: {plan.layout.log_dir}")
+        elif plan.layout.bag_dir.exists():
+            _say(f"bag not closed: {plan.layout.bag_dir}; `vega bag repair "
+                 f"{plan.layout.bag_dir}` recovers what was written; node logs: "
+                 f"{plan.layout.log_dir}")
         else:
             _say(f"node logs: {plan.layout.log_dir}")
         return _STATUS_EXIT[outcome.status]

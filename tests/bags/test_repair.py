@@ -1,0 +1,95 @@
+"""A bag whose writer died before closing it: the early run metadata and the chunk flushes keep
+what was written, `vega bag repair` rebuilds a complete bag from it, and `vega check` reads it."""
+
+import json
+import shutil
+
+import pytest
+
+from fixture_bags import short_run, write_bag
+from vega_bags import bagio
+from vega_bags.repair import repair_bag, scan_mcap
+from vega_cli import cli
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    return short_run(tmp_path_factory.mktemp("run"), span_s=(20.0, 25.0))
+
+
+@pytest.fixture(scope="module")
+def bag(run, tmp_path_factory):
+    return write_bag(tmp_path_factory.mktemp("bag") / "bag", run)
+
+
+def _messages(path):
+    return [(t, ts, bytes(d)) for t, ts, d in bagio.iter_raw_messages(path)]
+
+
+def _cut(bag, tmp_path, fraction):
+    """A copy of the bag as a killed writer leaves it: MCAP cut at ``fraction`` of its bytes,
+    no metadata.yaml, the early run metadata kept."""
+    dst = tmp_path / "killed"
+    shutil.copytree(bag, dst)
+    (dst / "metadata.yaml").unlink()
+    mcap = next(dst.glob("*.mcap"))
+    data = mcap.read_bytes()
+    mcap.write_bytes(data[:int(len(data) * fraction)])
+    return dst
+
+
+def test_the_writer_puts_run_metadata_and_chunks_on_disk_early(bag):
+    meta = json.loads(bagio.run_metadata_path(bag).read_text())
+    assert meta["custom_data"] == bagio.read_run_bag(bag).metadata
+    data = next(bag.glob("*.mcap")).read_bytes()
+    # one chunk per second of log time (5 s here) + the schemas/channels chunk, not one 1 MiB chunk
+    assert data.count(b"\x06") >= 6
+    channels, messages, dropped = scan_mcap(data)
+    assert dropped == 0 and sorted(channels.values()) == sorted(
+        t.name for t in bagio.topics.ALL_TOPICS)
+
+
+@pytest.mark.parametrize("fraction", [0.35, 0.7, 0.999])
+def test_repair_recovers_a_prefix_of_every_topic(bag, tmp_path, fraction, capsys):
+    killed = _cut(bag, tmp_path, fraction)
+    assert cli.main(["check", str(killed)]) == 2
+    assert "vega bag repair" in capsys.readouterr().err
+    assert cli.main(["bag", "repair", str(killed)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"repaired {killed}") and ".mcap.truncated" in out
+    original = _messages(bag)
+    got = _messages(killed)
+    assert 0 < len(got) <= len(original)
+    if fraction < 0.9:
+        assert len(got) < len(original)
+    else:                       # only the summary was cut: every message is recovered
+        assert got == original
+    by_topic = {}
+    for topic, ts, data in original:
+        by_topic.setdefault(topic, []).append((ts, data))
+    for topic in by_topic:
+        mine = [(ts, d) for t, ts, d in got if t == topic]
+        assert mine == by_topic[topic][:len(mine)], topic      # a prefix, bit for bit
+    last = max(ts for _, ts, _ in got)
+    # at most one flush period (1 s) plus the cut chunk is lost
+    assert last >= 20e9 + fraction * 5e9 - 2.5e9
+    assert bagio.read_run_bag(killed).metadata == bagio.read_run_bag(bag).metadata
+    assert any(killed.glob("*.mcap.truncated"))
+    complete = got == original
+    assert cli.main(["check", str(killed)]) == (0 if complete else 1)   # readable
+    assert "run complete" in capsys.readouterr().out
+
+
+def test_repair_refuses_what_it_cannot_repair(bag, tmp_path, capsys):
+    assert cli.main(["bag", "repair", str(bag)]) == 2
+    assert "a closed bag, nothing to repair" in capsys.readouterr().err
+    killed = _cut(bag, tmp_path, 0.5)
+    bagio.run_metadata_path(killed).unlink()
+    assert cli.main(["bag", "repair", str(killed)]) == 2
+    assert "no usable run metadata" in capsys.readouterr().err
+    junk = tmp_path / "junk"
+    junk.mkdir()
+    (junk / "junk.mcap").write_bytes(b"not an mcap file at all")
+    bagio.run_metadata_path(junk).write_text(json.dumps({"custom_data": {}}))
+    assert cli.main(["bag", "repair", str(junk)]) == 2
+    assert "not an MCAP file" in capsys.readouterr().err
