@@ -310,6 +310,38 @@ def test_killed_recorder_bag_is_repaired(tmp_path, short_scenario, pd_table):
     assert health["metadata"]["passed"] and not health["coverage"]["passed"]
 
 
+@pytest.mark.parametrize("victim", ["tvc_controller", "recorder"])
+def test_a_stopped_node_is_the_one_blamed(tmp_path, short_scenario, pd_table, victim):
+    """A node stopped mid-flight (SIGSTOP): the others stall waiting for it; the run fails
+    naming the stopped node first (not the first node, in start order, whose wait timed out)."""
+    proc = start_vega_sil_run(["--scenario", short_scenario, "--table", pd_table,
+                               "--out", tmp_path, "--realtime"])
+    pid = None
+    try:
+        stderr = []
+        for line in proc.stderr:
+            stderr.append(line)
+            if "start barrier complete" in line:
+                break
+        nodes = children_of(proc.pid)
+        (pid,) = [p for p, argv in nodes.items() if argv[1].endswith(f"/{victim}")]
+        assert wait_for_sim_time(11.0, still_running=lambda: proc.poll() is None)
+        os.kill(pid, signal.SIGSTOP)
+        rest = proc.communicate(timeout=180)[1]
+    finally:
+        if pid is not None and alive(pid):
+            os.kill(pid, signal.SIGCONT)
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    err = "".join(stderr) + rest
+    assert proc.returncode == 1, err
+    (error,) = [line for line in err.splitlines() if "error:" in line]
+    assert f"error: node '{victim}' stopped making progress: it is stopped (SIGSTOP or a " \
+           f"debugger)" in error, error
+    assert not any(alive(p) for p in nodes)
+
+
 def test_malformed_table_in_the_node_names_it(tmp_path, short_scenario):
     """The supervisor with the real nodes and a malformed table in the parameters (the
     command line rejects it before starting; this is the path of a table broken later, or of

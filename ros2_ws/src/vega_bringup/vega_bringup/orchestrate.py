@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import selectors
 import shlex
 import shutil
@@ -368,6 +369,23 @@ class NodeProcess:
         return _last_line(self.log_path)
 
 
+STALL_FOLLOW_S = 12.0
+"""How long the supervisor waits for a running node that another one stalled on to report its
+own stall (the nodes' default stall timeout, 10 s, plus a margin)."""
+# "lockstep stall: waited 10 s for /vega/ins seq 12" (vega_bus.shell.Shell.wait_until)
+_STALL = re.compile(r"lockstep stall: waited \S+ s for (/[\w/]+)")
+_PUBLISHERS = {t.name: t.publisher for t in (*topics.ALL_TOPICS, topics.RECORDED, topics.RUN)}
+
+
+def _process_state(pid: int) -> str | None:
+    """The state letter of /proc/PID/stat (R, S, D, T, t, Z, ...), None if unreadable."""
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return text.rpartition(")")[2].split()[0] if ")" in text else None
+
+
 @dataclass
 class RunOutcome:
     """How a run ended.
@@ -547,7 +565,50 @@ class Supervisor:
         code = process.returncode
         line = process.last_log_line()
         text = f"node '{process.name}' failed {phase}: {describe_status(code)}"
-        return f"{text}: {line}" if line and code > 0 else text
+        text = f"{text}: {line}" if line and code > 0 else text
+        culprit = self._culprit(process)
+        return text if culprit is None else f"{culprit}; then {text}"
+
+    def _await_stall_chain(self, failed: NodeProcess) -> None:
+        """When ``failed`` stalled waiting for a node that still runs and is not stopped, that
+        node is most likely waiting itself: give it up to :data:`STALL_FOLLOW_S` to end with
+        its own stall message, so that the chain leads to the node that stopped first."""
+        deadline = time.monotonic() + STALL_FOLLOW_S
+        while time.monotonic() < deadline:
+            culprit = self._culprit(failed)
+            if culprit is None or "is running but stopped publishing" not in culprit:
+                return
+            self._wait_any(0.2)
+
+    def _culprit(self, failed: NodeProcess) -> str | None:
+        """Who a lockstep stall really waited for: the producer of the awaited topic, followed
+        through further stalls, when it did not fail by itself first — a node that is stopped
+        (SIGSTOP, a debugger), hung, or ended early. None when ``failed`` did not stall, or the
+        chain ends at a node whose own failure is the cause (then that one is named
+        elsewhere)."""
+        by_name = {p.name: p for p in self.processes}
+        node, seen = failed, {failed.name}
+        while True:
+            match = _STALL.search(node.last_log_line() or "")
+            if match is None:
+                return None if node is failed else (
+                    f"node '{node.name}' failed: {describe_status(node.returncode)}: "
+                    f"{node.last_log_line()}")
+            producer = by_name.get(_PUBLISHERS.get(match.group(1), ""))
+            if producer is None or producer.name in seen:
+                return None
+            seen.add(producer.name)
+            code = producer.returncode
+            if code is None:
+                state = _process_state(producer.popen.pid)
+                how = ("is stopped (SIGSTOP or a debugger)" if state in ("T", "t")
+                       else "is running but stopped publishing")
+                return (f"node '{producer.name}' stopped making progress: it {how}, and "
+                        f"'{node.name}' waited in vain for {match.group(1)}")
+            if code == 0:
+                return (f"node '{producer.name}' ended (exit status 0) before the run was "
+                        f"complete, and '{node.name}' waited in vain for {match.group(1)}")
+            node = producer
 
     def wait_barrier(self, watcher: ReadyWatcher | None) -> RunOutcome | None:
         """Wait until every participant has announced itself on ``/vega/ready``.
@@ -587,6 +648,7 @@ class Supervisor:
         while True:
             failed = self._failed()
             if failed is not None:
+                self._await_stall_chain(failed)
                 return RunOutcome("bad_input" if failed.returncode == 2 else "failed",
                                   self._failure_message(failed, "during the flight"))
             running = self._running()

@@ -103,8 +103,8 @@ def _plant(shell: Shell) -> None:
     for k in range(n + 1):
         if k - recorded.count >= RECORDER_WINDOW_FRAMES and recorded.linked():
             shell.wait_until(lambda: k - recorded.count < RECORDER_WINDOW_FRAMES,
-                             lambda: f"the recorder (it reported {recorded.count} of {k} "
-                                     f"frames)")
+                             lambda: f"{topics.RECORDED.name}: the recorder reported "
+                                     f"{recorded.count} of {k} frames")
         t = plant.output()
         truth_pub.publish(wire.to_msg(t, msg))
         if k in ticks:
