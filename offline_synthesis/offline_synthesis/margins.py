@@ -80,6 +80,7 @@ import numpy as np
 from scipy.linalg import expm
 
 __all__ = [
+    "frozen_stability", "check_table_stabilises",
     "REQUIREMENTS", "DISPERSED_CRITERION", "CRITERIA", "CSV_COLUMNS", "RIGID_CORNER_NAMES",
     "BENDING_CORNER_NAMES", "BENDING_LOOP_NAMES",
     "runtime_rate", "flown_controller", "discrete_response", "ss_response", "zoh_response",
@@ -522,6 +523,53 @@ def analyse_loop(data: LoopData, p, actuator, delay_s: float, nyquist: bool = Tr
         row[f"sd_{key}"] = sd[key]
     row.update(sampled_data_stability(loop.model, loop.C, data.K, data.sign, nyquist=nyquist))
     return row
+
+
+def frozen_stability(table, context, times_s: Sequence[float]) -> list[dict]:
+    """Exact sampled-data stability of the nominal frozen loop with the flown controller at
+    each time (no margins, no frequency response: the quick check before a run).
+
+    Returns
+    -------
+    list of dict
+        ``t_s``, ``clamped`` (the velocity outside the table's grid), ``n_unstable`` and
+        ``max_abs_eig`` per time.
+    """
+    from vega_model.actuator import ActuatorParams
+
+    act = ActuatorParams.from_vehicle(context.vehicle)
+    tau = total_delay_s(context.vehicle)
+    out = []
+    for t in times_s:
+        p = context.parameters(float(t))
+        K, _, clamped = flown_controller(table, p.v_mps)
+        A, B, C = plant_loop_ss(p, act, table.input_names)
+        model = sampled_data_model(A, B, table.dt_s, tau)
+        res = sampled_data_stability(model, C, K, float(table.measurement_sign), nyquist=False)
+        out.append({"t_s": float(t), "clamped": bool(clamped), "n_unstable": res["n_unstable"],
+                    "max_abs_eig": res["max_abs_eig"]})
+    return out
+
+
+def check_table_stabilises(table, context, t_start_s: float, t_end_s: float,
+                           step_s: float = 1.0) -> list[dict]:
+    """The nominal frozen loops over [t_start, t_end] every ``step_s`` (:func:`frozen_stability`)
+    that are unstable where the velocity lies outside the table's grid (clamped: a known
+    limit to report); raises :class:`~vega_core.errors.BadFile` naming the table and the times
+    if one is unstable INSIDE its grid (a table that does not stabilise the vehicle it is
+    scheduled for, e.g. gains scaled by mistake, is refused before a run starts)."""
+    from vega_core.errors import BadFile
+
+    first = math.ceil(t_start_s / step_s - 1e-9) * step_s
+    times = np.arange(first, t_end_s + 1e-9, step_s)
+    rows = [r for r in frozen_stability(table, context, times) if r["n_unstable"]]
+    inside = [r for r in rows if not r["clamped"]]
+    if inside:
+        shown = ", ".join(f"{r['t_s']:g}" for r in inside[:5]) + (" …" if len(inside) > 5 else "")
+        raise BadFile(f"controller table {table.path}: the nominal frozen closed loop is "
+                      f"unstable inside its scheduling range at t = {shown} s (largest "
+                      f"|eigenvalue| {max(r['max_abs_eig'] for r in inside):.4f}): refused")
+    return rows
 
 
 # ------------------------------------------------------------------------------ dispersion

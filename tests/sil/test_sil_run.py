@@ -157,6 +157,30 @@ def test_malformed_table_is_rejected_before_start(tmp_path, capsys, no_start):
     assert not (tmp_path / "runs").exists()
 
 
+@pytest.mark.parametrize("command", ["sil", "mc"])
+def test_table_that_does_not_stabilise_is_refused_before_start(tmp_path, capsys, no_start,
+                                                               command):
+    """The shipped table with every output gain ×5 (well formed, finite, each discrete
+    controller as stable as before): its nominal frozen loops are unstable inside the grid, so
+    `vega sil run` and `vega mc run` refuse it in one line, exit 2, nothing written."""
+    import numpy as np
+    from vega_gnc.controller_table import default_table_path
+
+    arrays = dict(np.load(default_table_path()))
+    for key in ("C", "D", "Cd", "Dd"):
+        arrays[key] = arrays[key] * 5.0
+    bad = tmp_path / "gain5.npz"
+    np.savez(bad, **arrays)
+    extra = ["--runs", "2"] if command == "mc" else []
+    assert cli.main([command, "run", "--scenario", "thesis", "--table", str(bad), *extra,
+                     "--out", str(tmp_path / "runs")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"vega: error: controller table {bad}: the nominal frozen closed loop "
+                          f"is unstable inside its scheduling range at t = 10, 11"), err
+    assert err.count("\n") == 1
+    assert not (tmp_path / "runs").exists()
+
+
 def test_existing_output_is_never_overwritten(tmp_path, capsys, no_start, pd_table):
     """An existing run directory, or an --out that is a file: one line, exit 2, untouched."""
     (tmp_path / "runs" / "r1").mkdir(parents=True)

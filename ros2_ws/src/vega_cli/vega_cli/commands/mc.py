@@ -40,7 +40,9 @@ def _run(args: argparse.Namespace) -> int:
     from offline_synthesis.campaign import load_dispersions, parse_dispersions
     from offline_synthesis.campaign_run import (plot_campaign, read_rows, run_campaign,
                                                 summarise, summary_markdown, write_results)
+    from offline_synthesis.margins import check_table_stabilises
     from vega_bringup.planning import _checked_seed
+    from vega_model.parameters import default_context
     from vega_gnc.controller_table import default_table_path, load_controller_table
     from vega_sim.closed_loop import scenario_reference
     from vega_sim.scenario import load_scenario, parse_scenario
@@ -67,8 +69,9 @@ def _run(args: argparse.Namespace) -> int:
         table_path = Path(args.table) if args.table else default_table_path()
         out = Path(args.out) / f"{scenario.name}-seed{seed}-n{runs}" if args.out_is_parent \
             else Path(args.out)
-    load_controller_table(table_path)        # a bad table: one line, exit 2, before start
-    scenario_reference(scenario)             # likewise the guidance reference it names
+    table = load_controller_table(table_path)    # a bad table: one line, exit 2, before start
+    check_table_stabilises(table, default_context(), scenario.t_start_s, scenario.t_end_s)
+    scenario_reference(scenario)                 # likewise the guidance reference it names
     rows = run_campaign(scenario, disp, runs=runs, seed=seed, out=out,
                         table_path=table_path.resolve(), workers=args.workers,
                         scheduler=args.scheduler, resume=bool(args.resume))

@@ -44,6 +44,23 @@ def _write_report(plan):
     return result.passed, result.table()
 
 
+def _check_table_loops(plan):
+    """Refuse a table whose nominal frozen loops are unstable inside its scheduling range (one
+    line, exit 2, before anything starts); report those outside it (velocity clamped)."""
+    from offline_synthesis.margins import check_table_stabilises
+    from vega_gnc.controller_table import load_controller_table
+    from vega_model.parameters import default_context
+
+    table = load_controller_table(plan.params.controller_table)
+    clamped = check_table_stabilises(table, default_context(), plan.scenario.t_start_s,
+                                     plan.scenario.t_end_s)
+    if clamped:
+        _say("warning: the nominal frozen loop is unstable at t = "
+             + ", ".join(f"{r['t_s']:g}" for r in clamped)
+             + " s, where the velocity is outside the controller table's grid (clamped; "
+               "see `vega margins`)")
+
+
 def _run(args):
     """``vega sil run``."""
     from vega_bringup import orchestrate
@@ -51,6 +68,7 @@ def _run(args):
     plan = plan_run(scenario=args.scenario, seed=args.seed, out=args.out,
                     realtime=args.realtime, table=args.table, run_id=args.run_id,
                     domain_id=args.ros_domain_id)
+    _check_table_loops(plan)
     write_run_files(plan)
     if args.dry_run:
         for line in plan.lines:
