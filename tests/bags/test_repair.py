@@ -93,3 +93,15 @@ def test_repair_refuses_what_it_cannot_repair(bag, tmp_path, capsys):
     bagio.run_metadata_path(junk).write_text(json.dumps({"custom_data": {}}))
     assert cli.main(["bag", "repair", str(junk)]) == 2
     assert "not an MCAP file" in capsys.readouterr().err
+
+
+def test_metadata_names_the_ros_distribution(bag, tmp_path):
+    """metadata.yaml says ros_distro: jazzy (rosbags writes its own name), also after a repair."""
+    import yaml
+
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["ros_distro"] == "jazzy" and info["version"] == 9
+    killed = _cut(bag, tmp_path, 0.5)
+    repair_bag(killed)
+    info = yaml.safe_load((killed / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["ros_distro"] == "jazzy"

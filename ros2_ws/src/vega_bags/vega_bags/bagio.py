@@ -77,6 +77,8 @@ REQUIRED_METADATA = (META_SCENARIO, META_SCENARIO_YAML, META_SEED, META_CONTROLL
 
 _VEGA_TYPES = tuple(sorted({t.type_name for t in topics.DATA_TOPICS}))
 
+ROS_DISTRO = "jazzy"
+"""``ros_distro`` of the bags' metadata.yaml."""
 RUN_METADATA_FILE = "vega_run_metadata.json"
 """The run metadata, written beside the MCAP file when the bag is opened (crash safety)."""
 FLUSH_PERIOD_NS = 1_000_000_000
@@ -336,10 +338,19 @@ class RunBagWriter:
             self._next_flush_ns = t + FLUSH_PERIOD_NS
 
     def close(self) -> None:
-        """Write the MCAP summary and ``metadata.yaml``; idempotent."""
+        """Write the MCAP summary and ``metadata.yaml``; idempotent.
+
+        ``metadata.yaml`` says ``ros_distro: jazzy`` (the distribution whose rosbag2 format,
+        version 9, and message definitions the bag holds; rosbags writes its own name there).
+        ``starting_time`` is the first log time, i.e. simulation time since lift-off (0 for a
+        run from lift-off), not wall-clock time."""
         writer, self._writer = self._writer, None
         if writer is not None:
             writer.close()
+            meta = self.path / "metadata.yaml"
+            text = meta.read_text()
+            meta.write_text(text.replace("\n  ros_distro: rosbags\n",
+                                         f"\n  ros_distro: {ROS_DISTRO}\n", 1))
 
     def __enter__(self) -> "RunBagWriter":
         return self.open()
