@@ -45,7 +45,7 @@ from vega_core.errors import BadFile
 
 __all__ = ["Dispersions", "load_dispersions", "parse_dispersions", "default_dispersions_path",
            "sample_scenario", "fly_sample", "flight_metrics", "METRICS", "STATUS_COLUMNS",
-           "STABILITY_LIMITS"]
+           "STABILITY_LIMITS", "MARGIN_COLUMNS", "margins_sample"]
 
 DISTRIBUTIONS = ("uniform", "normal", "nominal")
 _INTENSITIES = ("none", "light", "moderate", "severe")
@@ -321,5 +321,50 @@ def fly_sample(scenario_yaml: str, table_path: str, dispersions_text: str, campa
     scenario, values = sample_scenario(base, disp, campaign_seed, index)
     result = run_scenario(scenario, _table(table_path))
     row = {"sample": int(index), "seed": int(scenario.seed), **values, **flight_metrics(result)}
+    row["wall_s"] = time.perf_counter() - t0
+    return row
+
+
+MARGIN_COLUMNS = ("pm_deg", "gm_low_db", "gm_high_db", "b1_peak_db", "b2_peak_db")
+
+
+def margins_sample(table_path: str, dispersions_text: str, campaign_seed: int, index: int,
+                   times_s) -> dict[str, Any]:
+    """Classical margins of the flown controller at frozen times for the plant of sample
+    ``index`` (the deviations of :func:`sample_scenario`; the controller on the nominal
+    schedule), as one row: the dispersed values, per time ``pm_deg@T`` … ``n_unstable@T``,
+    and the worst over the times (``worst_pm_deg``, …, ``unstable_times``)."""
+    from offline_synthesis import margins as mg
+    from vega_model.parameters import default_context
+    from vega_sim.scenario import load_scenario
+
+    t0 = time.perf_counter()
+    context = default_context()
+    disp = parse_dispersions(dispersions_text, "<campaign dispersions>")
+    _, values = sample_scenario(load_scenario("nominal"), disp, campaign_seed, index)
+    deviations = {k: values[k] for k, _ in disp.uncertainty}
+    table = _table(table_path)
+    row: dict[str, Any] = {"sample": int(index), **deviations}
+    worst = {c: math.inf for c in ("pm_deg", "gm_low_db", "gm_high_db")}
+    worst.update(b1_peak_db=-math.inf, b2_peak_db=-math.inf)
+    unstable = []
+    for t in times_s:
+        data = mg.loop_data(table, context, float(t))
+        p, act, tau = mg.corner_plant(context, float(t), deviations)
+        r = mg.analyse_loop(data, p, act, tau, nyquist=False)
+        for c in MARGIN_COLUMNS:
+            row[f"{c}@{t:g}"] = float(r[c])
+        row[f"n_unstable@{t:g}"] = int(r["n_unstable"])
+        if r["n_unstable"]:
+            unstable.append(float(t))
+        for c in ("pm_deg", "gm_low_db", "gm_high_db"):
+            if math.isfinite(r[c]):
+                worst[c] = min(worst[c], float(r[c]))
+        for c in ("b1_peak_db", "b2_peak_db"):
+            worst[c] = max(worst[c], float(r[c]))
+    row.update({f"worst_{c}": v for c, v in worst.items()})
+    row["unstable_times"] = ",".join(f"{t:g}" for t in unstable)
+    row["verdict"] = "fail" if unstable else "pass"
+    row["failed"] = "stability" if unstable else ""
     row["wall_s"] = time.perf_counter() - t0
     return row

@@ -35,9 +35,11 @@ import numpy as np
 
 from vega_core.errors import BadArgument
 
-from offline_synthesis.campaign import METRICS, STATUS_COLUMNS, fly_sample
+from offline_synthesis.campaign import (MARGIN_COLUMNS, METRICS, STATUS_COLUMNS, fly_sample,
+                                        margins_sample)
 
 __all__ = ["clopper_pearson_lower", "runs_needed", "run_campaign", "summarise",
+           "summarise_margins", "margins_markdown", "MARGIN_COLUMNS",
            "write_results", "read_rows", "PERCENTILES"]
 
 PERCENTILES = (50.0, 95.0, 99.0, 99.73, 100.0)
@@ -83,10 +85,12 @@ def read_rows(out: Path) -> list[dict]:
     return sorted(rows, key=lambda r: r["sample"])
 
 
-def _inputs(scenario, dispersions, seed: int, runs: int, table_path: Path) -> dict:
+def _inputs(scenario, dispersions, seed: int, runs: int, table_path: Path,
+            kind: str = "flights", times_s=None) -> dict:
     from vega_sim.scenario import dump_scenario
 
-    return {"scenario": scenario.name, "scenario_yaml": dump_scenario(scenario),
+    return {"kind": kind, "times_s": None if times_s is None else [float(t) for t in times_s],
+            "scenario": scenario.name, "scenario_yaml": dump_scenario(scenario),
             "dispersions_yaml": dispersions.text, "dispersions_path": dispersions.path,
             "seed": int(seed), "runs": int(runs), "table": str(table_path),
             "table_sha256": _sha256(table_path)}
@@ -106,8 +110,13 @@ def _cluster(workers: int | None, scheduler: str | None):
 
 def run_campaign(scenario, dispersions, *, runs: int, seed: int, out: Path, table_path: Path,
                  workers: int | None = None, scheduler: str | None = None, resume: bool = False,
-                 progress: Callable[[str], None] = print) -> list[dict]:
+                 progress: Callable[[str], None] = print, kind: str = "flights",
+                 times_s=None) -> list[dict]:
     """Fly the campaign's missing samples on Dask; return every row (finished before or now).
+
+    ``kind``: ``"flights"`` (:func:`~offline_synthesis.campaign.fly_sample`) or ``"margins"``
+    (:func:`~offline_synthesis.campaign.margins_sample` at ``times_s``; the scenario only
+    names the campaign).
 
     Raises
     ------
@@ -115,7 +124,7 @@ def run_campaign(scenario, dispersions, *, runs: int, seed: int, out: Path, tabl
         ``out`` holds another campaign (resume) or is not empty (new campaign).
     """
     out = Path(out)
-    inputs = _inputs(scenario, dispersions, seed, runs, Path(table_path))
+    inputs = _inputs(scenario, dispersions, seed, runs, Path(table_path), kind, times_s)
     campaign_file = out / CAMPAIGN_FILE
     if resume:
         if not campaign_file.is_file():
@@ -148,9 +157,14 @@ def run_campaign(scenario, dispersions, *, runs: int, seed: int, out: Path, tabl
         n_workers = len(client.scheduler_info().get("workers", {}))
         progress(f"mc: Dask {'scheduler ' + scheduler if scheduler else 'LocalCluster'}, "
                  f"{n_workers} workers")
-        futures = [client.submit(fly_sample, inputs["scenario_yaml"], inputs["table"],
-                                 inputs["dispersions_yaml"], inputs["seed"], i, pure=False,
-                                 key=f"sample-{i}") for i in todo]
+        if inputs.get("kind", "flights") == "margins":
+            futures = [client.submit(margins_sample, inputs["table"], inputs["dispersions_yaml"],
+                                     inputs["seed"], i, inputs["times_s"], pure=False,
+                                     key=f"sample-{i}") for i in todo]
+        else:
+            futures = [client.submit(fly_sample, inputs["scenario_yaml"], inputs["table"],
+                                     inputs["dispersions_yaml"], inputs["seed"], i, pure=False,
+                                     key=f"sample-{i}") for i in todo]
         for k, fut in enumerate(as_completed(futures), start=1):
             try:
                 row = fut.result()
@@ -162,7 +176,7 @@ def run_campaign(scenario, dispersions, *, runs: int, seed: int, out: Path, tabl
             if k == len(todo) or k % max(1, len(todo) // 20) == 0:
                 elapsed = time.monotonic() - t0
                 eta = elapsed / k * (len(todo) - k)
-                progress(f"mc: {k}/{len(todo)} flown, {failures} failed so far, "
+                progress(f"mc: {k}/{len(todo)} done, {failures} failed so far, "
                          f"{k / elapsed:.2f} flights/s, ETA {eta:.0f} s")
     finally:
         client.close()
@@ -225,6 +239,69 @@ def summarise(rows: Sequence[dict], inputs: dict, wall_s: float | None = None) -
         "wall_s": wall_s, "flights_per_s": (n / wall_s) if wall_s else None,
         "table": inputs["table"], "table_sha256": inputs["table_sha256"],
     }
+
+
+def summarise_margins(rows: Sequence[dict], inputs: dict, wall_s: float | None = None) -> dict:
+    """Statistics of a margins campaign: the fraction of dispersed plants whose frozen loops
+    are stable at every analysed time (with its Clopper–Pearson bounds), per time the
+    unstable count, and the percentiles of each worst margin against its heritage bound."""
+    from offline_synthesis.margins import DISPERSED_CRITERION, REQUIREMENTS
+
+    n = len(rows)
+    k = sum(1 for r in rows if r["verdict"] == "pass")
+    times = inputs["times_s"]
+    bounds = {"worst_pm_deg": REQUIREMENTS["pm_deg"], "worst_gm_low_db": REQUIREMENTS["gm_db"],
+              "worst_gm_high_db": REQUIREMENTS["gm_db"],
+              "worst_b1_peak_db": REQUIREMENTS["bending_db"],
+              "worst_b2_peak_db": REQUIREMENTS["bending_db"]}
+    metrics = {}
+    for name, bound in bounds.items():
+        values = np.array([r[name] for r in rows], dtype=float)
+        values = values[np.isfinite(values)]
+        metrics[name] = {"percentiles": {f"p{p:g}": float(np.percentile(values, 100 - p)
+                                                          if "peak" not in name else
+                                                          np.percentile(values, p))
+                                         for p in PERCENTILES} if values.size else {},
+                         "bound": bound, "unit": "dB" if name.endswith("db") else "deg"}
+    return {
+        "kind": "margins", "scenario": inputs["scenario"], "seed": inputs["seed"], "runs": n,
+        "passed": k, "pass_fraction": k / n if n else math.nan,
+        "pass_fraction_lower_90": clopper_pearson_lower(k, n, 0.90),
+        "pass_fraction_lower_95": clopper_pearson_lower(k, n, 0.95),
+        "demonstrated_99_73_at_90": bool(clopper_pearson_lower(k, n, 0.90) >= 0.9973),
+        "runs_needed_99_73_at_90": {"0_failures": runs_needed(0.9973, 0.90, 0),
+                                    "1_failure": runs_needed(0.9973, 0.90, 1)},
+        "times_s": times,
+        "unstable_per_time": {f"{t:g}": sum(1 for r in rows if r[f"n_unstable@{t:g}"])
+                              for t in times},
+        "metrics": metrics, "heritage": REQUIREMENTS, "dispersed_criterion": DISPERSED_CRITERION,
+        "failed_samples": [{"sample": r["sample"], "failed": r["unstable_times"]}
+                           for r in rows if r["verdict"] != "pass"],
+        "unstable": n - k, "wall_s": wall_s, "flights_per_s": (n / wall_s) if wall_s else None,
+        "table": inputs["table"], "table_sha256": inputs["table_sha256"],
+    }
+
+
+def margins_markdown(s: dict) -> str:
+    """``summary.md`` of a margins campaign (worst margins: the low end is the bad one for
+    PM and GM — the percentile p is of the worst p %)."""
+    lines = [f"# Dispersed-margins campaign (seed {s['seed']}), frozen times "
+             f"{', '.join(f'{t:g}' for t in s['times_s'])} s", "",
+             f"- plants {s['runs']}, stable at every time {s['passed']} "
+             f"(fraction {s['pass_fraction']:.4f}); Clopper–Pearson lower bound "
+             f"{s['pass_fraction_lower_90']:.4f} at 90 %, {s['pass_fraction_lower_95']:.4f} "
+             f"at 95 %",
+             "- unstable plants per time: " + ", ".join(
+                 f"{t} s: {n}" for t, n in s["unstable_per_time"].items()), "",
+             "| worst over the times | unit | p50 | p95 | p99 | p99.73 | worst | heritage bound |",
+             "|---|---|---|---|---|---|---|---|"]
+    for name, m in s["metrics"].items():
+        p = m["percentiles"]
+        if not p:
+            continue
+        lines.append(f"| {name} | {m['unit']} | {p['p50']:.3g} | {p['p95']:.3g} | "
+                     f"{p['p99']:.3g} | {p['p99.73']:.3g} | {p['p100']:.3g} | {m['bound']:g} |")
+    return "\n".join(lines) + "\n"
 
 
 def summary_markdown(s: dict) -> str:

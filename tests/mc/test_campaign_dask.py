@@ -155,3 +155,36 @@ def test_rerun_bad_input(reference, tmp_path, capsys):
     assert "the campaign has samples 0-5" in capsys.readouterr().err
     assert cli.main(["mc", "rerun", str(tmp_path), "--sample", "0"]) == 2
     assert "not a campaign directory" in capsys.readouterr().err
+
+
+def test_margins_campaign_is_the_margins_of_the_sampled_plants(tmp_path, capsys):
+    """`vega mc margins`: each row holds the margins vega margins computes for the plant of that
+    sample (its deviations as sample_scenario draws them), and the same rows on 1 and 2
+    workers."""
+    from offline_synthesis import margins as mg
+    from offline_synthesis.campaign import load_dispersions, sample_scenario
+    from vega_gnc.controller_table import default_table_path, load_controller_table
+    from vega_model.parameters import default_context
+    from vega_sim.scenario import load_scenario
+
+    rows = {}
+    for workers in (1, 2):
+        out = tmp_path / f"w{workers}"
+        code = cli.main(["mc", "margins", "--runs", "4", "--at", "50", "--seed", "2",
+                         "--workers", str(workers), "--out", str(out)])
+        assert code in (0, 1)
+        rows[workers] = _rows(out)
+    assert rows[1] == rows[2]
+    row = json.loads(rows[1])[3]
+    disp = load_dispersions()
+    _, values = sample_scenario(load_scenario("nominal"), disp, 2, 3)
+    deviations = {k: values[k] for k, _ in disp.uncertainty}
+    assert {k: row[k] for k in deviations} == deviations
+    ctx = default_context()
+    (want,) = mg.analyse_time(load_controller_table(default_table_path()), ctx, 50.0,
+                              [(0, deviations)], nyquist=False)
+    assert row["pm_deg@50"] == want["pm_deg"] and row["b1_peak_db@50"] == want["b1_peak_db"]
+    assert row["n_unstable@50"] == want["n_unstable"]
+    assert row["verdict"] == ("fail" if want["n_unstable"] else "pass")
+    summary = json.loads((tmp_path / "w1" / "summary.json").read_text())
+    assert summary["kind"] == "margins" and summary["runs"] == 4

@@ -1,5 +1,8 @@
 """``vega mc``: Monte Carlo dispersion campaigns (offline_synthesis.campaign, campaign_run).
 
+``vega mc margins --runs N [--at T|A:B:C] …`` computes the classical margins of the flown
+controller at frozen times for N dispersed plants (the same samples), with the same statistics.
+
 ``vega mc rerun DIR --sample I [--out RUNDIR]`` flies that sample through the ROS 2 nodes (``vega
 sil run`` on the sample's scenario) and checks that its bag's metrics equal the campaign row.
 
@@ -88,7 +91,10 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _rerun(args: argparse.Namespace) -> int:
-    """``vega mc rerun DIR --sample I``: the sample through the ROS 2 nodes; its bag's metrics
+    """``vega mc margins --runs N [--at T|A:B:C] …`` computes the classical margins of the flown
+controller at frozen times for N dispersed plants (the same samples), with the same statistics.
+
+``vega mc rerun DIR --sample I``: the sample through the ROS 2 nodes; its bag's metrics
     against the campaign's row."""
     import math
     from pathlib import Path
@@ -137,8 +143,60 @@ def _rerun(args: argparse.Namespace) -> int:
     return 0 if not differ else 1
 
 
+def _margins(args: argparse.Namespace) -> int:
+    """``vega mc margins``: classical margins at frozen times over N dispersed plants."""
+    from pathlib import Path
+
+    from offline_synthesis.campaign import load_dispersions, parse_dispersions
+    from offline_synthesis.campaign_run import (margins_markdown, run_campaign,
+                                                summarise_margins, write_results)
+    from vega_bringup.planning import _checked_seed
+    from vega_cli.commands.margins import parse_at
+    from vega_gnc.controller_table import default_table_path, load_controller_table
+    from vega_sim.scenario import load_scenario, parse_scenario
+
+    if args.workers is not None and args.scheduler:
+        raise BadArgument("--workers and --scheduler exclude each other")
+    t0 = time.monotonic()
+    if args.resume:
+        out = Path(args.resume)
+        path = out / "campaign.json"
+        if not path.is_file():
+            raise BadArgument(f"--resume {out}: no campaign.json (not a campaign directory)")
+        inputs = json.loads(path.read_text())
+        if inputs.get("kind") != "margins":
+            raise BadArgument(f"--resume {out}: a flight campaign (use vega mc run --resume)")
+        scenario = parse_scenario(inputs["scenario_yaml"], f"{path}: scenario_yaml")
+        disp = parse_dispersions(inputs["dispersions_yaml"], inputs["dispersions_path"])
+        seed, runs, table_path = inputs["seed"], inputs["runs"], Path(inputs["table"])
+        times = inputs["times_s"]
+    else:
+        if args.runs is None:
+            raise BadArgument("--runs N is required (or --resume DIR)")
+        times = parse_at(args.at)
+        scenario = load_scenario("nominal")
+        disp = load_dispersions(args.dispersions)
+        seed = _checked_seed(args.seed) or 0
+        runs = args.runs
+        table_path = Path(args.table) if args.table else default_table_path()
+        out = Path(args.out) if args.out else Path(DEFAULT_OUT) / f"margins-seed{seed}-n{runs}"
+    load_controller_table(table_path)            # a bad table: one line, exit 2, before start
+    rows = run_campaign(scenario, disp, runs=runs, seed=seed, out=out,
+                        table_path=table_path.resolve(), workers=args.workers,
+                        scheduler=args.scheduler, resume=bool(args.resume), kind="margins",
+                        times_s=times)
+    inputs = json.loads((out / "campaign.json").read_text())
+    write_results(out, rows)
+    summary = summarise_margins(rows, inputs, wall_s=time.monotonic() - t0)
+    (out / "summary.json").write_text(json.dumps(summary, indent=1, sort_keys=True) + "\n")
+    (out / "summary.md").write_text(margins_markdown(summary))
+    print(margins_markdown(summary), end="")
+    print(f"vega mc: {out}/ (results.parquet, summary.json, summary.md)")
+    return 0 if summary["passed"] == summary["runs"] else 1
+
+
 def _no_action(args) -> int:
-    raise BadArgument("vega mc: choose an action (run, rerun)")
+    raise BadArgument("vega mc: choose an action (run, margins, rerun)")
 
 
 def register(subparsers) -> None:
@@ -173,6 +231,30 @@ def register(subparsers) -> None:
     run.add_argument("--resume", default=None, metavar="DIR",
                      help="finish the campaign in DIR (its own inputs; the others are ignored)")
     run.set_defaults(func=_run_entry)
+    margins = actions.add_parser(
+        "margins", help="margins of the flown controller over dispersed plants",
+        description="Classical margins (exact sampled-data loop, vega margins) of the flown "
+                    "controller on the nominal schedule at frozen times, for N plants drawn "
+                    "from the dispersions (sample i: the campaign seed and i only). Exit 0 "
+                    "every plant stable at every time, 1 not, 2 bad input.")
+    margins.add_argument("--runs", type=_positive_int, default=None, metavar="N",
+                         help="number of dispersed plants")
+    margins.add_argument("--at", default="10:90:10", metavar="T|START:STOP:STEP",
+                         help="frozen times [s] (default 10:90:10)")
+    margins.add_argument("--dispersions", default=None, metavar="FILE",
+                         help="dispersion file (default: the shipped one)")
+    margins.add_argument("--seed", default=None, metavar="S", help="campaign seed (default 0)")
+    margins.add_argument("--out", default=None, metavar="DIR",
+                         help=f"campaign directory (default {DEFAULT_OUT}/margins-seed<S>-n<N>)")
+    margins.add_argument("--table", default=None, metavar="FILE",
+                         help="controller table (default: the installed one)")
+    margins.add_argument("--workers", type=_positive_int, default=None, metavar="K",
+                         help="worker processes of the LocalCluster (default: one per core)")
+    margins.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                         help="run on an existing Dask scheduler")
+    margins.add_argument("--resume", default=None, metavar="DIR",
+                         help="finish the margins campaign in DIR")
+    margins.set_defaults(func=_margins)
     rerun = actions.add_parser(
         "rerun", help="fly one campaign sample through the ROS 2 nodes",
         description="Fly sample I of the campaign in DIR with `vega sil run` (the dispersed "
