@@ -45,7 +45,8 @@ from vega_core.errors import BadFile
 
 __all__ = ["Dispersions", "load_dispersions", "parse_dispersions", "default_dispersions_path",
            "sample_scenario", "fly_sample", "flight_metrics", "METRICS", "STATUS_COLUMNS",
-           "STABILITY_LIMITS", "MARGIN_COLUMNS", "margins_sample"]
+           "STABILITY_LIMITS", "MARGIN_COLUMNS", "margins_sample", "MACH_BIN",
+           "N_MACH_BINS"]
 
 DISTRIBUTIONS = ("uniform", "normal", "nominal")
 _INTENSITIES = ("none", "light", "moderate", "severe")
@@ -70,6 +71,9 @@ METRICS = {
 # 0.0095, and at most 0.5 s in total at the rate limit.
 STABILITY_LIMITS = {"max_abs_bending_q1": 1.0, "max_abs_bending_q2": 0.1,
                     "rate_limited_s": 0.5}
+# Mach bins of the per-sample Qα profile (the band plot): max |Qα| in [k·0.1, (k+1)·0.1)
+MACH_BIN = 0.1
+N_MACH_BINS = 60
 STATUS_COLUMNS = ("n_ok", "n_velocity_clamped", "n_limited", "n_hold_last", "n_safe_zero")
 
 
@@ -297,6 +301,10 @@ def flight_metrics(result) -> dict[str, Any]:
         "rate_limited_s": float(np.sum(np.abs(result.beta_dot_radps[1:]) >= 0.99 * rate_limit)
                                 * (dt.mean() if dt.size else 0.0)),
     }
+    bins = np.minimum((np.asarray(result.mach) / MACH_BIN).astype(int), N_MACH_BINS - 1)
+    profile = np.full(N_MACH_BINS, np.nan)
+    np.fmax.at(profile, bins, np.degrees(qa))
+    row["q_alpha_profile_pa_deg"] = [float(x) for x in profile]
     for col, status in zip(STATUS_COLUMNS, (STATUS_OK, STATUS_VELOCITY_CLAMPED, STATUS_LIMITED,
                                             STATUS_HOLD_LAST, STATUS_SAFE_ZERO)):
         row[col] = int(np.count_nonzero(result.cmd_status == status))

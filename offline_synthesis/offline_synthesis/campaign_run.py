@@ -331,6 +331,39 @@ def summary_markdown(s: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _plot_q_alpha_band(out: Path, profiles: np.ndarray) -> Path:
+    """Max |Qα| per Mach bin over the samples: median, 95 %, 99.73 % and max against the
+    structural envelope (``q_alpha_band.png``)."""
+    import warnings
+
+    import matplotlib.pyplot as plt
+
+    from offline_synthesis.campaign import MACH_BIN
+    from vega_sim.requirements import load_requirements
+
+    spec = load_requirements()
+    centre = (np.arange(profiles.shape[1]) + 0.5) * MACH_BIN
+    keep = np.isfinite(profiles).any(axis=0)
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)     # bins a sample never reached
+        for p, style in ((50, "-"), (95, "--"), (99.73, "-."), (100, ":")):
+            ax.plot(centre[keep], np.nanpercentile(profiles[:, keep], p, axis=0) / 1e3, style,
+                    label=f"{'max' if p == 100 else f'p{p:g}'} of max |Qα| per Mach bin")
+    ax.plot(spec.envelope_mach, np.degrees(spec.envelope_pa_rad) / 1e3, "k", lw=2,
+            label="envelope")
+    ax.set_xlim(0, centre[keep].max() + MACH_BIN)
+    ax.set_xlabel("Mach")
+    ax.set_ylabel("kPa·deg")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path = Path(out) / "q_alpha_band.png"
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
 def plot_campaign(out: Path, rows: Sequence[dict], summary: dict) -> list[Path]:
     """Histograms of the metrics against their bounds, and a tornado chart of the rank
     correlation of each dispersed parameter with the Qα ratio."""
@@ -353,8 +386,13 @@ def plot_campaign(out: Path, rows: Sequence[dict], summary: dict) -> list[Path]:
     fig.savefig(paths[-1], dpi=100)
     plt.close(fig)
 
+    profiles = [r["q_alpha_profile_pa_deg"] for r in rows if "q_alpha_profile_pa_deg" in r]
+    if profiles:
+        paths.append(_plot_q_alpha_band(out, np.array(profiles, dtype=float)))
+
     params = [k for k in rows[0] if k not in METRICS and k not in STATUS_COLUMNS
-              and k not in ("sample", "seed", "verdict", "failed", "wall_s", "stable")
+              and k not in ("sample", "seed", "verdict", "failed", "wall_s", "stable",
+                            "q_alpha_profile_pa_deg")
               and np.ptp([r[k] for r in rows if not math.isnan(r[k])] or [0]) > 0]
     rho = []
     for k in params:

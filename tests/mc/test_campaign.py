@@ -127,5 +127,11 @@ def test_fly_sample_is_the_in_process_flight_of_that_scenario():
     assert row["max_abs_z_m"] == float(np.abs(res.z_m).max())
     assert row["max_abs_q_alpha_pa_deg"] == float(np.degrees(np.abs(res.q_alpha_pa_rad).max()))
     assert row["verdict"] == ("pass" if res.metrics().passed and row["stable"] else "fail")
+    # the Mach profile: max |Qα| per 0.1-wide Mach bin, its maximum the flight's
+    profile = np.array(row["q_alpha_profile_pa_deg"])
+    assert np.nanmax(profile) == row["max_abs_q_alpha_pa_deg"]
+    k = int(res.mach[0] / 0.1)
+    assert np.isfinite(profile[k]) and np.isnan(profile[k + 10])
     assert all(row[k] == v for k, v in values.items() if not (isinstance(v, float) and
                                                                  math.isnan(v)))
+    assert row["q_alpha_profile_pa_deg"] is not None

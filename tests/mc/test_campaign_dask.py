@@ -58,7 +58,7 @@ def test_same_samples_whatever_the_worker_count(reference, scenario, tmp_path, c
     summary = json.loads((out / "summary.json").read_text())
     assert summary["runs"] == RUNS and summary["passed"] == sum(
         r["verdict"] == "pass" for r in rows)
-    for name in ("histograms.png", "sensitivity_q_alpha.png", "summary.md"):
+    for name in ("histograms.png", "sensitivity_q_alpha.png", "q_alpha_band.png", "summary.md"):
         assert (out / name).stat().st_size > 0
 
 
