@@ -322,8 +322,10 @@ def summary_markdown(s: dict) -> str:
         bound = "—" if m["bound"] is None else f"{m['bound']:.4g}"
         lines.append(f"| {name} | {m['unit']} | {p['p50']:.4g} | {p['p95']:.4g} | "
                      f"{p['p99']:.4g} | {p['p99.73']:.4g} | {p['p100']:.4g} | {bound} |")
-    lines += ["", "Failed samples: " + (", ".join(f"{f['sample']} ({f['failed']})"
-                                                  for f in s["failed_samples"]) or "none"),
+    failed = s["failed_samples"]
+    shown = ", ".join(f"{f['sample']} ({f['failed']})" for f in failed[:20])
+    more = f" … and {len(failed) - 20} more (summary.json)" if len(failed) > 20 else ""
+    lines += ["", f"Failed samples ({len(failed)}): " + (shown + more if failed else "none"),
               "", "Worst Qα samples: " + ", ".join(f"{w['sample']} ({w['q_alpha_margin']:.3f})"
                                                   for w in s["worst_q_alpha_samples"])]
     if s.get("wall_s"):
