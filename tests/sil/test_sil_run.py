@@ -377,3 +377,29 @@ def test_killed_orchestrator_leaves_no_nodes(tmp_path):
     while any(alive(pid) for pid in node_pids) and time.monotonic() < deadline:
         time.sleep(0.01)  # the orphans are reaped by init, not by us
     assert not any(alive(pid) for pid in node_pids)
+
+
+def _in_small_fs(mount_point: Path, size: str, command: list[str]):
+    """Run ``command`` in a private mount namespace with a tmpfs of ``size`` mounted on
+    ``mount_point`` (``{fs}`` in the command is replaced by it): a real small file system,
+    seen by that process only."""
+    import shlex
+
+    script = (f"mount -t tmpfs -o size={size} tmpfs {mount_point} && "
+              + " ".join(shlex.quote(a.replace("{fs}", str(mount_point))) for a in command))
+    return subprocess.run(["unshare", "-m", "sh", "-c", script], capture_output=True,
+                          text=True, timeout=120)
+
+
+@pytest.mark.parametrize("size, code", [("4m", 2), ("64m", 0)])
+def test_free_space_is_checked_before_start(tmp_path, size, code):
+    """`vega sil run` into a file system too small for the run's bag, logs and report (80 s:
+    about 10 MB) is refused in one line, exit 2, nothing written; with room it plans the run
+    (--dry-run: nothing started either way). The file system is a real tmpfs of that size."""
+    result = _in_small_fs(tmp_path, size, [sys.executable, "-m", "vega_cli.cli", "sil", "run",
+                                 "--scenario", "thesis", "--out", "{fs}/runs", "--dry-run"])
+    assert result.returncode == code, result.stderr
+    if code == 2:
+        assert result.stderr.count("\n") == 1, result.stderr
+        assert "MB free on its file system; a 80 s run needs about 10.0 MB" in result.stderr
+        assert "runs" not in result.stdout

@@ -120,6 +120,30 @@ def _check_guidance(scenario) -> None:
     load_guidance_reference(path)
 
 
+BAG_BYTES_PER_S = 100_000
+"""Bag size per simulated second, with a margin (measured: 77 kB/s, the 100 s nominal bag
+7.74 MB; assumption: +30 %)."""
+RUN_RESERVE_BYTES = 2_000_000
+"""Room for the node logs, the report and its plots (measured ≈ 0.3 MB; assumption: ×6)."""
+
+
+def _check_free_space(out: Path, span_s: float) -> None:
+    """Refuse a run whose output file system cannot hold its bag, logs and report: a full
+    disk during the flight would cut the bag and lose the logs that say why."""
+    import shutil
+
+    existing = out
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    free = shutil.disk_usage(existing).free
+    need = int(span_s * BAG_BYTES_PER_S) + RUN_RESERVE_BYTES
+    if free < need:
+        raise BadArgument(f"--out {out}: {free / 1e6:.1f} MB free on its file system; a "
+                          f"{span_s:g} s run needs about {need / 1e6:.1f} MB (bag "
+                          f"{BAG_BYTES_PER_S / 1e3:g} kB per simulated second + "
+                          f"{RUN_RESERVE_BYTES / 1e6:g} MB for logs and the report)")
+
+
 def plan_run(scenario=DEFAULT_SCENARIO, seed=None, out=DEFAULT_OUT, realtime=False, table=None,
              run_id=None, domain_id=None, barrier_timeout_s=None):
     """Validate the arguments of a run and build its plan; nothing is written or started.
@@ -161,6 +185,7 @@ def plan_run(scenario=DEFAULT_SCENARIO, seed=None, out=DEFAULT_OUT, realtime=Fal
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise BadArgument(f"--out {out}: exists and is not a directory")
+    _check_free_space(out, loaded.t_end_s - loaded.t_start_s)
     run_id = run_id if run_id is not None else orchestrate.default_run_id(loaded.name,
                                                                           effective_seed)
     run_id = _checked_run_id(run_id)
