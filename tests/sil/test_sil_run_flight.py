@@ -342,6 +342,34 @@ def test_a_stopped_node_is_the_one_blamed(tmp_path, short_scenario, pd_table, vi
     assert not any(alive(p) for p in nodes)
 
 
+def test_full_disk_during_the_flight_is_named(tmp_path, pd_table):
+    """The output file system fills up during the flight (a real 12 MB tmpfs, private mount
+    namespace; a filler file takes the free space 3 s into a real-time 10-30 s run, after the
+    free-space check passed): the run fails and the console line says the file system is full;
+    after room is made, `vega bag repair` recovers the bag's complete chunks."""
+    import shlex
+
+    scenario = write_short_scenario(tmp_path, "thesis", "thesis_20s", 10.0, 30.0)
+    fs = tmp_path / "fs"
+    fs.mkdir()
+    vega = [sys.executable, "-m", "vega_cli.cli"]
+    run = " ".join(shlex.quote(str(a)) for a in vega + [
+        "sil", "run", "--scenario", scenario, "--table", pd_table, "--out", fs / "runs",
+        "--realtime"])
+    repair = " ".join(shlex.quote(str(a)) for a in vega + ["bag", "repair"])
+    script = (f"mount -t tmpfs -o size=12m tmpfs {fs} && "
+              f"(sleep 6; head -c 20000000 /dev/zero > {fs}/filler 2>/dev/null) & "
+              f"{run}; echo \"run exit $?\"; rm -f {fs}/filler; "
+              f"for b in {fs}/runs/*/bag; do {repair} $b; echo \"repair exit $?\"; done")
+    result = subprocess.run(["unshare", "-m", "sh", "-c", script], capture_output=True,
+                            text=True, timeout=300, env=flight_env())
+    out = result.stdout + result.stderr
+    assert "run exit 1" in result.stdout or "run exit 2" in result.stdout, out
+    (error,) = [line for line in result.stderr.splitlines() if "vega sil: error:" in line]
+    assert "is full" in error and "bytes free" in error, error
+    assert "repair exit 0" in result.stdout, out
+
+
 def test_malformed_table_in_the_node_names_it(tmp_path, short_scenario):
     """The supervisor with the real nodes and a malformed table in the parameters (the
     command line rejects it before starting; this is the path of a table broken later, or of

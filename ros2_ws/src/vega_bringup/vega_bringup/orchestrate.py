@@ -369,6 +369,19 @@ class NodeProcess:
         return _last_line(self.log_path)
 
 
+DISK_FULL_BYTES = 1 << 20
+"""Free space below which a failed run is reported as a full disk (1 MiB: less than one
+second of bag)."""
+
+
+def _free_bytes(path: Path) -> int | None:
+    """Free bytes on the file system of ``path`` (None if it cannot be asked)."""
+    try:
+        return shutil.disk_usage(path).free
+    except OSError:
+        return None
+
+
 STALL_FOLLOW_S = 12.0
 """How long the supervisor waits for a running node that another one stalled on to report its
 own stall (the nodes' default stall timeout, 10 s, plus a margin)."""
@@ -567,7 +580,12 @@ class Supervisor:
         text = f"node '{process.name}' failed {phase}: {describe_status(code)}"
         text = f"{text}: {line}" if line and code > 0 else text
         culprit = self._culprit(process)
-        return text if culprit is None else f"{culprit}; then {text}"
+        text = text if culprit is None else f"{culprit}; then {text}"
+        free = _free_bytes(self.layout.run_dir)
+        if free is not None and free < DISK_FULL_BYTES:
+            text += (f"; the file system of {self.layout.run_dir} is full ({free} bytes free): "
+                     f"the nodes could not write their logs or the bag")
+        return text
 
     def _await_stall_chain(self, failed: NodeProcess) -> None:
         """When ``failed`` stalled waiting for a node that still runs and is not stopped, that
