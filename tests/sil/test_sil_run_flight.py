@@ -310,6 +310,34 @@ def test_killed_recorder_bag_is_repaired(tmp_path, short_scenario, pd_table):
     assert health["metadata"]["passed"] and not health["coverage"]["passed"]
 
 
+def test_a_recorder_that_ends_mid_flight_is_blamed(tmp_path, short_scenario, pd_table):
+    """The recorder stopped by SIGTERM mid-flight closes its bag and exits 0 — too early: the
+    plant then stalls on its progress, and the run fails naming the recorder as having ended
+    before the run was complete (not the plant whose wait timed out)."""
+    proc = start_vega_sil_run(["--scenario", short_scenario, "--table", pd_table,
+                               "--out", tmp_path, "--realtime"])
+    try:
+        stderr = []
+        for line in proc.stderr:
+            stderr.append(line)
+            if "start barrier complete" in line:
+                break
+        nodes = children_of(proc.pid)
+        (pid,) = [p for p, argv in nodes.items() if argv[1].endswith("/recorder")]
+        assert wait_for_sim_time(11.0, still_running=lambda: proc.poll() is None)
+        os.kill(pid, signal.SIGTERM)
+        rest = proc.communicate(timeout=180)[1]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    err = "".join(stderr) + rest
+    assert proc.returncode == 1, err
+    (error,) = [line for line in err.splitlines() if "error:" in line]
+    assert "error: node 'recorder' ended (exit status 0) before the run was complete" in error, \
+        error
+
+
 @pytest.mark.parametrize("victim", ["tvc_controller", "recorder"])
 def test_a_stopped_node_is_the_one_blamed(tmp_path, short_scenario, pd_table, victim):
     """A node stopped mid-flight (SIGSTOP): the others stall waiting for it; the run fails

@@ -369,6 +369,8 @@ class NodeProcess:
         return _last_line(self.log_path)
 
 
+_STOPPED = re.compile(r": stopped by SIG[A-Z]+")
+"""The line a node writes when a signal stopped it (vega_bus.shell)."""
 DISK_FULL_BYTES = 1 << 20
 """Free space below which a failed run is reported as a full disk (1 MiB: less than one
 second of bag)."""
@@ -382,9 +384,10 @@ def _free_bytes(path: Path) -> int | None:
         return None
 
 
-STALL_FOLLOW_S = 12.0
+STALL_FOLLOW_S = 20.0
 """How long the supervisor waits for a running node that another one stalled on to report its
-own stall (the nodes' default stall timeout, 10 s, plus a margin)."""
+own stall (twice the nodes' default stall timeout of 10 s: under load a stall is reported
+late)."""
 # "lockstep stall: waited 10 s for /vega/ins seq 12" (vega_bus.shell.Shell.wait_until)
 _STALL = re.compile(r"lockstep stall: waited \S+ s for (/[\w/]+)")
 _PUBLISHERS = {t.name: t.publisher for t in (*topics.ALL_TOPICS, topics.RECORDED, topics.RUN)}
@@ -587,6 +590,21 @@ class Supervisor:
                      f"the nodes could not write their logs or the bag")
         return text
 
+    def _ended_early(self) -> str | None:
+        """A node that ended with status 0 because something outside the run stopped it (its
+        last line says ``stopped by SIG…``) while the others still fly: the run is not
+        complete, whatever the status says (a recorder stopped so closes a partial bag)."""
+        if not self._running():
+            return None
+        for process in self.processes:
+            if process.returncode != 0:
+                continue
+            line = process.last_log_line() or ""
+            if _STOPPED.search(line):
+                return (f"node '{process.name}' ended (exit status 0) before the run was "
+                        f"complete: {line}")
+        return None
+
     def _await_stall_chain(self, failed: NodeProcess) -> None:
         """When ``failed`` stalled waiting for a node that still runs and is not stopped, that
         node is most likely waiting itself: give it up to :data:`STALL_FOLLOW_S` to end with
@@ -669,6 +687,9 @@ class Supervisor:
                 self._await_stall_chain(failed)
                 return RunOutcome("bad_input" if failed.returncode == 2 else "failed",
                                   self._failure_message(failed, "during the flight"))
+            early = self._ended_early()
+            if early is not None:
+                return RunOutcome("failed", early)
             running = self._running()
             if not running:
                 return RunOutcome("ok")
