@@ -105,3 +105,62 @@ def test_metadata_names_the_ros_distribution(bag, tmp_path):
     repair_bag(killed)
     info = yaml.safe_load((killed / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     assert info["ros_distro"] == "jazzy"
+
+
+def _channel_metadata(mcap_bytes):
+    """topic → metadata map of every MCAP channel record (a reader of its own: opcode 0x04 at
+    the top level or inside an uncompressed chunk, 0x06)."""
+    import struct
+
+    def string(buf, pos):
+        (n,) = struct.unpack_from("<I", buf, pos)
+        return bytes(buf[pos + 4:pos + 4 + n]).decode(), pos + 4 + n
+
+    def records(buf, pos, end):
+        while pos + 9 <= end:
+            op, length = buf[pos], struct.unpack_from("<Q", buf, pos + 1)[0]
+            yield op, buf[pos + 9:pos + 9 + length]
+            pos += 9 + length
+
+    found = {}
+
+    def channel(body):
+        topic, pos = string(body, 4)
+        _, pos = string(body, pos)
+        (size,) = struct.unpack_from("<I", body, pos)
+        pos, end, meta = pos + 4, pos + 4 + size, {}
+        while pos < end:
+            key, pos = string(body, pos)
+            meta[key], pos = string(body, pos)
+        found[topic] = meta
+
+    buf = memoryview(mcap_bytes)
+    for op, body in records(buf, 8, len(buf)):
+        if op == 0x04:
+            channel(body)
+        elif op == 0x06:
+            compression, at = string(body, 28)
+            (size,) = struct.unpack_from("<Q", body, at)
+            for inner_op, inner in records(body[at + 8:at + 8 + size], 0, size):
+                if inner_op == 0x04:
+                    channel(inner)
+    return found
+
+
+def test_channels_carry_the_rosidl_type_hash(bag):
+    """Every MCAP channel has ``topic_type_hash`` = the RIHS01 hash rosidl generated for its
+    type (the installed ``share/<pkg>/msg/<Type>.json``), as Jazzy's rosbag2 writes it."""
+    from pathlib import Path
+
+    from ament_index_python.packages import get_package_share_directory
+
+    meta = _channel_metadata(next(bag.glob("*.mcap")).read_bytes())
+    assert sorted(meta) == sorted(t.name for t in bagio.topics.ALL_TOPICS)
+    for topic in bagio.topics.ALL_TOPICS:
+        package, _, name = topic.type_name.split("/")
+        generated = json.loads((Path(get_package_share_directory(package)) / "msg"
+                                / f"{name}.json").read_text())
+        want = next(h["hash_string"] for h in generated["type_hashes"]
+                    if h["type_name"] == topic.type_name)
+        assert meta[topic.name]["topic_type_hash"] == want, topic.name
+        assert "offered_qos_profiles" in meta[topic.name]

@@ -85,6 +85,37 @@ FLUSH_PERIOD_NS = 1_000_000_000
 """Log time between two chunk flushes of :class:`RunBagWriter` (1 s)."""
 
 
+@lru_cache(maxsize=1)
+def _writer_class():
+    """rosbags' rosbag2 writer whose MCAP channels also carry ``topic_type_hash`` (the RIHS01
+    type hash, as Jazzy's rosbag2 MCAP plugin writes it and ``ros2 bag reindex`` reads it; the
+    rosbags writer puts it in metadata.yaml only). Built on rosbags' MCAP writer (pinned
+    version; tests/bags/test_repair.py reads the channel records back)."""
+    from io import BytesIO
+
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.rosbag2.storage_mcap import (Channel, McapWriter, write_channel,
+                                              write_string)
+
+    class _McapWriter(McapWriter):
+        def add_connection(self, connection, offered_qos_profiles: str) -> None:
+            metadata = BytesIO()
+            for key, value in (("offered_qos_profiles", offered_qos_profiles),
+                               ("topic_type_hash", connection.digest)):
+                write_string(metadata, key)
+                write_string(metadata, value)
+            self.channels.append(Channel(connection.id, connection.msgtype, connection.topic,
+                                         connection.ext.serialization_format,
+                                         metadata.getvalue()))
+            self.channel_stats[connection.id] = 0
+            write_channel(self.chunk.bio, self.channels[-1], self.schemas)
+
+    class _Writer(Writer):
+        STORAGE_PLUGINS = {**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: _McapWriter}
+
+    return _Writer
+
+
 def run_metadata_path(bag_dir: str | Path) -> Path:
     """Path of the early run-metadata file of a bag directory."""
     return Path(bag_dir) / RUN_METADATA_FILE
@@ -279,14 +310,14 @@ class RunBagWriter:
         OSError
             If the path exists or cannot be created.
         """
-        from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
+        from rosbags.rosbag2 import StoragePlugin, WriterError
 
         if self._writer is not None:
             raise ValueError(f"bag {self.path}: already open")
         if self.path.exists():
             raise FileExistsError(f"bag {self.path}: exists already, not overwriting")
         store = vega_typestore()
-        writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        writer = _writer_class()(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
         for key, value in self.metadata.items():
             writer.set_custom_data(key, value)
         try:
