@@ -164,3 +164,32 @@ def test_channels_carry_the_rosidl_type_hash(bag):
                     if h["type_name"] == topic.type_name)
         assert meta[topic.name]["topic_type_hash"] == want, topic.name
         assert "offered_qos_profiles" in meta[topic.name]
+
+
+def test_a_flipped_bit_is_found_by_the_chunk_crc(bag, tmp_path, capsys):
+    """Chunks carry their CRC-32 (rosbags' writer leaves 0 = none): one bit flipped in a
+    message payload inside the bag makes `vega check` refuse it, and `vega bag repair` too."""
+    import struct
+
+    data = bytearray(next(bag.glob("*.mcap")).read_bytes())
+    # the second chunk record (the first holds only the schemas and channels): CRC set
+    pos, seen = 8, 0
+    while True:
+        if data[pos] == 0x06:
+            seen += 1
+            if seen == 2:
+                break
+        pos += 9 + struct.unpack_from("<Q", data, pos + 1)[0]
+    assert struct.unpack_from("<I", data, pos + 9 + 24)[0] != 0
+    damaged = tmp_path / "damaged"
+    shutil.copytree(bag, damaged)
+    mcap = next(damaged.glob("*.mcap"))
+    # a byte of the last message written to that chunk (its payload ends the chunk's records)
+    length = struct.unpack_from("<Q", data, pos + 1)[0]
+    data[pos + 9 + length - 3] ^= 0x10
+    mcap.write_bytes(bytes(data))
+    assert cli.main(["check", str(damaged)]) == 2
+    assert "checksum mismatch" in capsys.readouterr().err
+    (damaged / "metadata.yaml").unlink()
+    assert cli.main(["bag", "repair", str(damaged)]) == 2
+    assert "fail their CRC-32" in capsys.readouterr().err

@@ -89,8 +89,10 @@ FLUSH_PERIOD_NS = 1_000_000_000
 def _writer_class():
     """rosbags' rosbag2 writer whose MCAP channels also carry ``topic_type_hash`` (the RIHS01
     type hash, as Jazzy's rosbag2 MCAP plugin writes it and ``ros2 bag reindex`` reads it; the
-    rosbags writer puts it in metadata.yaml only). Built on rosbags' MCAP writer (pinned
-    version; tests/bags/test_repair.py reads the channel records back)."""
+    rosbags writer puts it in metadata.yaml only) and whose chunks carry their CRC-32. Built on
+    rosbags' MCAP writer (pinned version; tests/bags/test_repair.py reads the channel records
+    and checks the CRCs)."""
+    import zlib
     from io import BytesIO
 
     from rosbags.rosbag2 import StoragePlugin, Writer
@@ -98,6 +100,18 @@ def _writer_class():
                                               write_string)
 
     class _McapWriter(McapWriter):
+        def close_chunk(self) -> None:
+            # the chunk record's CRC-32 of its uncompressed records (rosbags leaves it 0: "no
+            # CRC"); rosbags' reader checks a non-zero one, so vega check finds a flipped bit.
+            # Record layout: opcode u8, length u64, start u64, end u64, size u64, crc u32.
+            start = self.bio.tell()
+            crc = zlib.crc32(self.chunk.bio.getvalue())
+            super().close_chunk()
+            end = self.bio.tell()
+            self.bio.seek(start + 1 + 8 + 3 * 8)
+            self.bio.write(crc.to_bytes(4, "little"))
+            self.bio.seek(end)
+
         def add_connection(self, connection, offered_qos_profiles: str) -> None:
             metadata = BytesIO()
             for key, value in (("offered_qos_profiles", offered_qos_profiles),

@@ -19,6 +19,7 @@ import json
 import shutil
 import struct
 import tempfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -84,6 +85,7 @@ def scan_mcap(data: bytes) -> tuple[dict[int, str], list[tuple[int, int, bytes]]
         raise ValueError("not an MCAP file (bad magic)")
     channels: dict[int, str] = {}
     messages: list[tuple[int, int, bytes]] = []
+    bad_chunks = 0
 
     def take(op, body):
         if op == _OP_CHANNEL:
@@ -111,11 +113,18 @@ def scan_mcap(data: bytes) -> tuple[dict[int, str], list[tuple[int, int, bytes]]
                 raise ValueError(f"compressed chunk ({compression!r}) not supported")
             (size,) = struct.unpack_from("<Q", body, at)
             inner = body[at + 8:at + 8 + size]
+            (crc,) = struct.unpack_from("<I", body, 24)
+            if crc and zlib.crc32(inner) != crc:
+                bad_chunks += 1             # a damaged chunk: its messages are not trusted
+                continue
             inner_records = _records(inner, 0, len(inner))
             for inner_op, inner_body in inner_records:
                 take(inner_op, inner_body)
         else:
             take(op, body)
+    if bad_chunks:
+        raise ValueError(f"{bad_chunks} chunk(s) fail their CRC-32 (the file is damaged, not "
+                         f"only cut)")
     return channels, messages, end - pos
 
 
