@@ -4,9 +4,10 @@
 (docs/GUIDANCE.md) for a design wind — the steady profile V_w(h) of thesis Eq. 2.54, or a
 changed one (``--wind-scale``, ``--wind-shift-m``: e.g. a day-of-launch update) — and writes
 the reference the controller tracks, its JSON summary (``FILE.json``) and a plot
-(``FILE.png``). The product flies the committed copy,
-``vega_gnc/config/guidance_reference.npz``; regenerate it with
-``--out ros2_ws/src/vega_gnc/config/guidance_reference.npz``. Exit 0, or 2 on bad input.
+(``FILE.png``, or ``--plot``). The product flies the committed copy,
+``vega_gnc/config/guidance_reference.npz``; regenerate it with ``--out
+ros2_ws/src/vega_gnc/config/guidance_reference.npz --plot docs/figures/guidance_reference.png``.
+Exit 0, or 2 on bad input.
 """
 
 from __future__ import annotations
@@ -40,6 +41,8 @@ def _run(args: argparse.Namespace) -> int:
         raise BadArgument(f"--out {out}: must end in .npz")
     if out.is_dir():
         raise BadArgument(f"--out {out}: is a directory")
+    if args.plot and not args.plot.endswith(".png"):
+        raise BadArgument(f"--plot {args.plot}: must end in .png")
     if abs(args.wind_scale) > 3.0 or abs(args.wind_shift_m) > 10_000.0:
         raise BadArgument("--wind-scale must be within ±3 and --wind-shift-m within ±10000 m "
                           "(the scenario limits)")
@@ -50,7 +53,7 @@ def _run(args: argparse.Namespace) -> int:
     weights = GuidanceWeights()
     design = design_reference(wind, weights, progress=print)
     write_guidance_reference(out, design, wind, weights)
-    png = plot_guidance(design, out.with_suffix(".png"))
+    png = plot_guidance(design, Path(args.plot) if args.plot else out.with_suffix(".png"))
     s = design.summary
     print(f"wrote {out} ({design.t_s.size} samples, {design.t_s[0]:g}-{design.t_s[-1]:g} s), "
           f"{out.with_suffix('.json')}, {png}")
@@ -72,6 +75,8 @@ def register(subparsers) -> None:
                     "Writes FILE.npz (the flight software's reference), FILE.json and "
                     "FILE.png.")
     p.add_argument("--out", required=True, metavar="FILE.npz", help="output reference file")
+    p.add_argument("--plot", default=None, metavar="FILE.png",
+                   help="where the plot goes (default: FILE.png beside --out)")
     p.add_argument("--wind-scale", type=_finite, default=1.0, metavar="S",
                    help="design wind = S x V_w(h - H) (default 1)")
     p.add_argument("--wind-shift-m", type=_finite, default=0.0, metavar="H",
