@@ -15,6 +15,7 @@ import numpy as np
 from offline_synthesis.export import write_controller_table
 from vega_gnc.controller_runtime import ControllerRuntime, Measurement
 from vega_gnc.controller_table import load_controller_table
+from vega_gnc.guidance_reference import load_guidance_reference
 
 SHIPPED = Path(__file__).resolve().parent.parent / "ros2_ws/src/vega_gnc/config/lpv_controller.npz"
 NAMES = ["theta_ins_rad", "theta_dot_ins_radps", "z_ins_m", "z_dot_ins_mps"]
@@ -33,24 +34,32 @@ def _synthetic_table():
                                   gamma_min=1, rate_bounds_mps2=[5.4, 36.4], metadata=meta)
 
 
-def main():
-    path = sys.argv[1] if len(sys.argv) > 1 else (SHIPPED if SHIPPED.exists() else None)
-    table = load_controller_table(path) if path else _synthetic_table()
-    runtime = ControllerRuntime(table)
+def _time_steps(runtime, table, n: int = 50_000) -> np.ndarray:
+    """Step times [µs] over n measurements sweeping the grid (0–100 s of stamps)."""
     v0, v1 = table.grid_v_mps[0], table.grid_v_mps[-1]
-    n = 50_000
     samples = np.empty(n)
     rng = np.random.default_rng(1)
     noise = 1e-4 * rng.standard_normal((n, 4))
     for k in range(n):
-        m = Measurement(k * 0.02, *noise[k], v0 + (v1 - v0) * k / n, True)
+        m = Measurement(k * 0.002, *noise[k], v0 + (v1 - v0) * k / n, True)
         t0 = time.perf_counter()
         runtime.step(m)
         samples[k] = time.perf_counter() - t0
-    us = samples * 1e6
+    return samples * 1e6
+
+
+def main():
+    path = sys.argv[1] if len(sys.argv) > 1 else (SHIPPED if SHIPPED.exists() else None)
+    table = load_controller_table(path) if path else _synthetic_table()
     print(f"table: {table.path} ({table.n_states} states, {table.grid_v_mps.size} grid points)")
-    print(f"controller step: median {np.median(us):.1f} us, p99 {np.percentile(us, 99):.1f} us, "
-          f"max {us.max():.1f} us over {n} steps")
+    cases = [("no guidance reference", None)]
+    reference = SHIPPED.with_name("guidance_reference.npz")
+    if reference.exists():
+        cases.append(("shipped guidance reference", load_guidance_reference(reference)))
+    for label, ref in cases:
+        us = _time_steps(ControllerRuntime(table, reference=ref), table)
+        print(f"controller step, {label}: median {np.median(us):.1f} us, "
+              f"p99 {np.percentile(us, 99):.1f} us, max {us.max():.1f} us over {us.size} steps")
 
 
 if __name__ == "__main__":

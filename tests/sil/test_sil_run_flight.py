@@ -267,31 +267,41 @@ def test_stopped_recorder_still_closes_its_bag(tmp_path, short_scenario, pd_tabl
             in health["coverage"]["detail"]), health["coverage"]
 
 
+def _signal_mid_flight(args, victim: str, at_sim_s: float, sig) -> tuple[int, str, dict]:
+    """Start `vega sil run ARGS`, send ``sig`` to node ``victim`` once the flight's sim time
+    passed ``at_sim_s``, wait for the run to end; (exit status, stderr, the nodes' pids).
+    Nothing is left behind (a stopped victim is resumed, the run killed if it hangs)."""
+    proc = start_vega_sil_run(args)
+    pid, nodes, stderr = None, {}, []
+    try:
+        for line in proc.stderr:
+            stderr.append(line)
+            if "start barrier complete" in line:
+                break
+        nodes = children_of(proc.pid)
+        (pid,) = [p for p, argv in nodes.items() if argv[1].endswith(f"/{victim}")]
+        assert wait_for_sim_time(at_sim_s, still_running=lambda: proc.poll() is None)
+        os.kill(pid, sig)
+        stderr.append(proc.communicate(timeout=180)[1])
+    finally:
+        if pid is not None and alive(pid):
+            os.kill(pid, signal.SIGCONT)
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    return proc.returncode, "".join(stderr), nodes
+
+
 def test_killed_recorder_bag_is_repaired(tmp_path, short_scenario, pd_table):
     """The recorder killed mid-flight (SIGKILL: nothing it can handle): the run fails naming
     it and says how to recover; the bag has no metadata.yaml, `vega bag repair` rebuilds it
     from the chunks flushed every second and the run metadata written at the start, and
     `vega check` reads it (incomplete run, complete metadata; the truth up to at most ≈ 1 s
     before the kill)."""
-    proc = start_vega_sil_run(["--scenario", short_scenario, "--table", pd_table,
-                               "--out", tmp_path, "--realtime"])
-    try:
-        stderr = []
-        for line in proc.stderr:
-            stderr.append(line)
-            if "start barrier complete" in line:
-                break
-        nodes = children_of(proc.pid)
-        (recorder,) = [p for p, argv in nodes.items() if argv[1].endswith("/recorder")]
-        assert wait_for_sim_time(12.5, still_running=lambda: proc.poll() is None)
-        os.kill(recorder, signal.SIGKILL)
-        rest = proc.communicate(timeout=120)[1]
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    err = "".join(stderr) + rest
-    assert proc.returncode == 1, err
+    code, err, _ = _signal_mid_flight(["--scenario", short_scenario, "--table", pd_table,
+                                       "--out", tmp_path, "--realtime"],
+                                      "recorder", 12.5, signal.SIGKILL)
+    assert code == 1, err
     assert "vega bag repair" in err, err
     layout = run_layout_in(tmp_path)
     assert not (layout.bag_dir / "metadata.yaml").exists()
@@ -312,27 +322,12 @@ def test_killed_recorder_bag_is_repaired(tmp_path, short_scenario, pd_table):
 
 def test_a_recorder_that_ends_mid_flight_is_blamed(tmp_path, short_scenario, pd_table):
     """The recorder stopped by SIGTERM mid-flight closes its bag and exits 0 — too early: the
-    plant then stalls on its progress, and the run fails naming the recorder as having ended
-    before the run was complete (not the plant whose wait timed out)."""
-    proc = start_vega_sil_run(["--scenario", short_scenario, "--table", pd_table,
-                               "--out", tmp_path, "--realtime"])
-    try:
-        stderr = []
-        for line in proc.stderr:
-            stderr.append(line)
-            if "start barrier complete" in line:
-                break
-        nodes = children_of(proc.pid)
-        (pid,) = [p for p, argv in nodes.items() if argv[1].endswith("/recorder")]
-        assert wait_for_sim_time(11.0, still_running=lambda: proc.poll() is None)
-        os.kill(pid, signal.SIGTERM)
-        rest = proc.communicate(timeout=180)[1]
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    err = "".join(stderr) + rest
-    assert proc.returncode == 1, err
+    run fails naming the recorder as having ended before the run was complete (before: the run
+    flew on without it and only the report failed)."""
+    code, err, _ = _signal_mid_flight(["--scenario", short_scenario, "--table", pd_table,
+                                       "--out", tmp_path, "--realtime"],
+                                      "recorder", 11.0, signal.SIGTERM)
+    assert code == 1, err
     (error,) = [line for line in err.splitlines() if "error:" in line]
     assert "error: node 'recorder' ended (exit status 0) before the run was complete" in error, \
         error
@@ -342,28 +337,10 @@ def test_a_recorder_that_ends_mid_flight_is_blamed(tmp_path, short_scenario, pd_
 def test_a_stopped_node_is_the_one_blamed(tmp_path, short_scenario, pd_table, victim):
     """A node stopped mid-flight (SIGSTOP): the others stall waiting for it; the run fails
     naming the stopped node first (not the first node, in start order, whose wait timed out)."""
-    proc = start_vega_sil_run(["--scenario", short_scenario, "--table", pd_table,
-                               "--out", tmp_path, "--realtime"])
-    pid = None
-    try:
-        stderr = []
-        for line in proc.stderr:
-            stderr.append(line)
-            if "start barrier complete" in line:
-                break
-        nodes = children_of(proc.pid)
-        (pid,) = [p for p, argv in nodes.items() if argv[1].endswith(f"/{victim}")]
-        assert wait_for_sim_time(11.0, still_running=lambda: proc.poll() is None)
-        os.kill(pid, signal.SIGSTOP)
-        rest = proc.communicate(timeout=180)[1]
-    finally:
-        if pid is not None and alive(pid):
-            os.kill(pid, signal.SIGCONT)
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    err = "".join(stderr) + rest
-    assert proc.returncode == 1, err
+    code, err, nodes = _signal_mid_flight(["--scenario", short_scenario, "--table", pd_table,
+                                           "--out", tmp_path, "--realtime"],
+                                          victim, 11.0, signal.SIGSTOP)
+    assert code == 1, err
     (error,) = [line for line in err.splitlines() if "error:" in line]
     assert f"error: node '{victim}' stopped making progress: it is stopped (SIGSTOP or a " \
            f"debugger)" in error, error

@@ -25,6 +25,8 @@ from pathlib import Path
 
 from vega_core.errors import one_line
 
+from vega_bus import topics
+
 from vega_bags import bagio
 
 __all__ = ["RepairReport", "scan_mcap", "repair_bag"]
@@ -156,7 +158,7 @@ def repair_bag(path: str | Path) -> RepairReport:
         channels, messages, dropped = scan_mcap(mcap.read_bytes())
     except ValueError as exc:
         raise bagio.BagError(f"bag {bag}: {mcap.name}: {exc}") from None
-    known = {t.name for t in bagio.topics.ALL_TOPICS}
+    known = {t.name for t in topics.ALL_TOPICS}
     foreign = sorted(set(channels.values()) - known)
     if foreign:
         raise bagio.BagError(f"bag {bag}: foreign topics {', '.join(foreign)}; not a run bag")

@@ -611,17 +611,23 @@ class Supervisor:
         its own stall message, so that the chain leads to the node that stopped first."""
         deadline = time.monotonic() + STALL_FOLLOW_S
         while time.monotonic() < deadline:
-            culprit = self._culprit(failed)
-            if culprit is None or "is running but stopped publishing" not in culprit:
+            culprit = self._stall_chain(failed)
+            if culprit is None or not culprit[1]:
                 return
             self._wait_any(0.2)
 
     def _culprit(self, failed: NodeProcess) -> str | None:
+        """The text of :meth:`_stall_chain` (None: nobody else to name)."""
+        chain = self._stall_chain(failed)
+        return None if chain is None else chain[0]
+
+    def _stall_chain(self, failed: NodeProcess) -> tuple[str, bool] | None:
         """Who a lockstep stall really waited for: the producer of the awaited topic, followed
         through further stalls, when it did not fail by itself first — a node that is stopped
         (SIGSTOP, a debugger), hung, or ended early. None when ``failed`` did not stall, or the
         chain ends at a node whose own failure is the cause (then that one is named
-        elsewhere)."""
+        elsewhere). The flag says whether the named node still runs without being stopped
+        (it may yet report a stall of its own)."""
         by_name = {p.name: p for p in self.processes}
         node, seen = failed, {failed.name}
         while True:
@@ -629,21 +635,22 @@ class Supervisor:
             if match is None:
                 return None if node is failed else (
                     f"node '{node.name}' failed: {describe_status(node.returncode)}: "
-                    f"{node.last_log_line()}")
+                    f"{node.last_log_line()}", False)
             producer = by_name.get(_PUBLISHERS.get(match.group(1), ""))
             if producer is None or producer.name in seen:
                 return None
             seen.add(producer.name)
             code = producer.returncode
             if code is None:
-                state = _process_state(producer.popen.pid)
-                how = ("is stopped (SIGSTOP or a debugger)" if state in ("T", "t")
+                stopped = _process_state(producer.popen.pid) in ("T", "t")
+                how = ("is stopped (SIGSTOP or a debugger)" if stopped
                        else "is running but stopped publishing")
                 return (f"node '{producer.name}' stopped making progress: it {how}, and "
-                        f"'{node.name}' waited in vain for {match.group(1)}")
+                        f"'{node.name}' waited in vain for {match.group(1)}", not stopped)
             if code == 0:
                 return (f"node '{producer.name}' ended (exit status 0) before the run was "
-                        f"complete, and '{node.name}' waited in vain for {match.group(1)}")
+                        f"complete, and '{node.name}' waited in vain for {match.group(1)}",
+                        False)
             node = producer
 
     def wait_barrier(self, watcher: ReadyWatcher | None) -> RunOutcome | None:

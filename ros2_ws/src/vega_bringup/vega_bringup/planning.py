@@ -105,19 +105,16 @@ def _resolve_table(path, scenario):
 def _check_guidance(scenario) -> None:
     """Load and validate the guidance reference the scenario names (the nodes take it from the
     run description), so that a bad one is refused before anything starts."""
-    from vega_gnc.guidance_reference import (NO_GUIDANCE, default_reference_path,
-                                             load_guidance_reference)
+    from vega_gnc.guidance_reference import (DEFAULT_GUIDANCE, load_guidance_reference,
+                                             reference_path)
 
-    if scenario.guidance == NO_GUIDANCE:
+    path = reference_path(scenario.guidance)
+    if path is None:
         return
-    if scenario.guidance == "default":
-        path = default_reference_path()
-        if not path.is_file():
-            raise BadInput(f"no guidance reference: {path} is not installed; run `vega "
-                           f"guidance --out` or fly a scenario with 'guidance: none'")
-    else:
-        path = Path(scenario.guidance).resolve()
-    load_guidance_reference(path)
+    if scenario.guidance == DEFAULT_GUIDANCE and not path.is_file():
+        raise BadInput(f"no guidance reference: {path} is not installed; run `vega "
+                       f"guidance --out` or fly a scenario with 'guidance: none'")
+    load_guidance_reference(path.resolve())
 
 
 BAG_BYTES_PER_S = 100_000

@@ -38,6 +38,7 @@ from vega_gnc.config_files import check_header, installed_config, numeric_arrays
 from vega_gnc.controller_table import MEASUREMENT_NAMES
 
 __all__ = ["FORMAT_VERSION", "REQUIRED_METADATA", "REFERENCE_BOUNDS", "NO_GUIDANCE",
+           "DEFAULT_GUIDANCE",
            "GuidanceReference", "GuidanceReferenceError", "validate_reference_arrays",
            "load_guidance_reference", "default_reference_path", "reference_path",
            "resolve_reference"]
@@ -47,6 +48,8 @@ REQUIRED_METADATA = ("input_names", "units", "design_wind", "weights", "constrai
                      "versions", "git_revision", "created_utc")
 NO_GUIDANCE = "none"
 """The value of a ``guidance`` setting or node parameter that flies no reference (zero bias)."""
+DEFAULT_GUIDANCE = "default"
+"""The value of a ``guidance`` setting that flies the installed reference."""
 
 # Largest reference a file may hold: beyond these it is not a wind bias of the nominal
 # programme but another trajectory, which the controller table was not designed around
@@ -160,11 +163,12 @@ def default_reference_path() -> Path:
 
 
 def reference_path(setting: str) -> Path | None:
-    """The file a ``guidance`` setting names: ``""`` or ``"default"`` → the installed one,
+    """The file a ``guidance`` setting names: ``""`` or :data:`DEFAULT_GUIDANCE` → the
+    installed one,
     ``"none"`` → None, anything else → that path (not checked here)."""
     if setting == NO_GUIDANCE:
         return None
-    return default_reference_path() if setting in ("", "default") else Path(setting)
+    return default_reference_path() if setting in ("", DEFAULT_GUIDANCE) else Path(setting)
 
 
 def resolve_reference(setting: str) -> GuidanceReference | None:

@@ -59,10 +59,7 @@ from vega_core.errors import BadArgument, BadFile, BadInput
 from vega_model.uncertainty import UncertaintySet
 from vega_model.vehicle_data import VehicleData, load_vehicle_data
 from vega_model.wind import INTENSITIES
-from vega_gnc.guidance_reference import NO_GUIDANCE
-
-DEFAULT_GUIDANCE = "default"
-"""``guidance`` of a scenario that flies the installed guidance reference."""
+from vega_gnc.guidance_reference import DEFAULT_GUIDANCE, NO_GUIDANCE
 # Largest profile change a scenario may fly (assumption: beyond three times the design speed
 # or a 10 km shift it is another wind, not a change of this one).
 _MAX_PROFILE_SCALE = 3.0

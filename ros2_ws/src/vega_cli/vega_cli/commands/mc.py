@@ -37,64 +37,98 @@ def _positive_int(text: str) -> int:
     return value
 
 
-def _run(args: argparse.Namespace) -> int:
+def _campaign(args: argparse.Namespace, kind: str) -> dict:
+    """The inputs of a ``kind`` campaign ("flights" or "margins"): from ``--resume DIR``'s
+    campaign.json (a campaign of the other kind refused), else from the arguments. Every input
+    file is loaded and checked here, before anything starts (one line, exit 2)."""
     from pathlib import Path
 
     from offline_synthesis.campaign import load_dispersions, parse_dispersions
-    from offline_synthesis.campaign_run import (plot_campaign, read_rows, run_campaign,
-                                                summarise, summary_markdown, write_results)
-    from offline_synthesis.margins import check_table_stabilises
     from vega_bringup.planning import _checked_seed
-    from vega_model.parameters import default_context
-    from vega_gnc.controller_table import default_table_path, load_controller_table
-    from vega_sim.closed_loop import scenario_reference
+    from vega_gnc.controller_table import default_table_path
     from vega_sim.scenario import load_scenario, parse_scenario
 
     if args.workers is not None and args.scheduler:
         raise BadArgument("--workers and --scheduler exclude each other")
-    t0 = time.monotonic()
     if args.resume:
         out = Path(args.resume)
         path = out / "campaign.json"
         if not path.is_file():
             raise BadArgument(f"--resume {out}: no campaign.json (not a campaign directory)")
         inputs = json.loads(path.read_text())
-        scenario = parse_scenario(inputs["scenario_yaml"], f"{path}: scenario_yaml")
-        disp = parse_dispersions(inputs["dispersions_yaml"], inputs["dispersions_path"])
-        seed, runs, table_path = inputs["seed"], inputs["runs"], Path(inputs["table"])
+        if inputs.get("kind", "flights") != kind:
+            other = "run" if kind == "margins" else "margins"
+            raise BadArgument(f"--resume {out}: a {inputs.get('kind', 'flights')} campaign "
+                              f"(use vega mc {other} --resume)")
+        return {"scenario": parse_scenario(inputs["scenario_yaml"], f"{path}: scenario_yaml"),
+                "disp": parse_dispersions(inputs["dispersions_yaml"],
+                                          inputs["dispersions_path"]),
+                "seed": inputs["seed"], "runs": inputs["runs"],
+                "table_path": Path(inputs["table"]), "out": out,
+                "times": inputs.get("times_s")}
+    if args.runs is None:
+        raise BadArgument("--runs N is required (or --resume DIR)")
+    seed = _checked_seed(args.seed) or 0
+    if kind == "margins":
+        from vega_cli.commands.margins import parse_at
+
+        times, scenario = parse_at(args.at), load_scenario("nominal")
+        default_name = f"margins-seed{seed}-n{args.runs}"
     else:
-        if args.runs is None:
-            raise BadArgument("--runs N is required (or --resume DIR)")
-        scenario = load_scenario(args.scenario)
-        disp = load_dispersions(args.dispersions)
-        seed = _checked_seed(args.seed) or 0
-        runs = args.runs
-        table_path = Path(args.table) if args.table else default_table_path()
-        out = Path(args.out) / f"{scenario.name}-seed{seed}-n{runs}" if args.out_is_parent \
-            else Path(args.out)
-    table = load_controller_table(table_path)    # a bad table: one line, exit 2, before start
-    check_table_stabilises(table, default_context(), scenario.t_start_s, scenario.t_end_s)
-    scenario_reference(scenario)                 # likewise the guidance reference it names
-    rows = run_campaign(scenario, disp, runs=runs, seed=seed, out=out,
-                        table_path=table_path.resolve(), workers=args.workers,
-                        scheduler=args.scheduler, resume=bool(args.resume))
-    inputs = json.loads((out / "campaign.json").read_text())
-    write_results(out, rows)
-    summary = summarise(rows, inputs, wall_s=time.monotonic() - t0)
+        times, scenario = None, load_scenario(args.scenario)
+        default_name = f"{scenario.name}-seed{seed}-n{args.runs}"
+    return {"scenario": scenario, "disp": load_dispersions(args.dispersions), "seed": seed,
+            "runs": args.runs,
+            "table_path": Path(args.table) if args.table else default_table_path(),
+            "out": Path(args.out) if args.out else Path(DEFAULT_OUT) / default_name,
+            "times": times}
+
+
+def _fly(args: argparse.Namespace, c: dict, kind: str) -> tuple[list[dict], dict]:
+    """Run (or finish) the campaign ``c`` on Dask; its rows and its campaign.json inputs."""
+    from offline_synthesis.campaign_run import run_campaign, write_results
+
+    rows = run_campaign(c["scenario"], c["disp"], runs=c["runs"], seed=c["seed"], out=c["out"],
+                        table_path=c["table_path"].resolve(), workers=args.workers,
+                        scheduler=args.scheduler, resume=bool(args.resume), kind=kind,
+                        times_s=c["times"])
+    write_results(c["out"], rows)
+    return rows, json.loads((c["out"] / "campaign.json").read_text())
+
+
+def _write_summary(out, summary: dict, markdown: str, files: str) -> int:
     (out / "summary.json").write_text(json.dumps(summary, indent=1, sort_keys=True) + "\n")
-    (out / "summary.md").write_text(summary_markdown(summary))
-    plot_campaign(out, read_rows(out), summary)
-    print(summary_markdown(summary), end="")
-    print(f"vega mc: {out}/ (results.parquet, summary.json, summary.md, histograms.png, "
-          f"sensitivity_q_alpha.png)")
+    (out / "summary.md").write_text(markdown)
+    print(markdown, end="")
+    print(f"vega mc: {out}/ ({files})")
     return 0 if summary["passed"] == summary["runs"] else 1
 
 
-def _rerun(args: argparse.Namespace) -> int:
-    """``vega mc margins --runs N [--at T|A:B:C] …`` computes the classical margins of the flown
-controller at frozen times for N dispersed plants (the same samples), with the same statistics.
+def _run(args: argparse.Namespace) -> int:
+    """``vega mc run``: dispersed flights."""
+    from offline_synthesis.campaign_run import (plot_campaign, read_rows, summarise,
+                                                summary_markdown)
+    from offline_synthesis.margins import check_table_stabilises
+    from vega_gnc.controller_table import load_controller_table
+    from vega_model.parameters import default_context
+    from vega_sim.closed_loop import scenario_reference
 
-``vega mc rerun DIR --sample I``: the sample through the ROS 2 nodes; its bag's metrics
+    t0 = time.monotonic()
+    c = _campaign(args, "flights")
+    table = load_controller_table(c["table_path"])   # a bad table: one line, exit 2
+    check_table_stabilises(table, default_context(), c["scenario"].t_start_s,
+                           c["scenario"].t_end_s)
+    scenario_reference(c["scenario"])                 # likewise the guidance reference
+    rows, inputs = _fly(args, c, "flights")
+    summary = summarise(rows, inputs, wall_s=time.monotonic() - t0)
+    plot_campaign(c["out"], read_rows(c["out"]), summary)
+    return _write_summary(c["out"], summary, summary_markdown(summary),
+                          "results.parquet, summary.json, summary.md, histograms.png, "
+                          "sensitivity_q_alpha.png, q_alpha_band.png")
+
+
+def _rerun(args: argparse.Namespace) -> int:
+    """``vega mc rerun DIR --sample I``: the sample through the ROS 2 nodes; its bag's metrics
     against the campaign's row."""
     from pathlib import Path
 
@@ -143,62 +177,46 @@ controller at frozen times for N dispersed plants (the same samples), with the s
 
 def _margins(args: argparse.Namespace) -> int:
     """``vega mc margins``: classical margins at frozen times over N dispersed plants."""
-    from pathlib import Path
+    from offline_synthesis.campaign_run import margins_markdown, summarise_margins
+    from vega_gnc.controller_table import load_controller_table
 
-    from offline_synthesis.campaign import load_dispersions, parse_dispersions
-    from offline_synthesis.campaign_run import (margins_markdown, run_campaign,
-                                                summarise_margins, write_results)
-    from vega_bringup.planning import _checked_seed
-    from vega_cli.commands.margins import parse_at
-    from vega_gnc.controller_table import default_table_path, load_controller_table
-    from vega_sim.scenario import load_scenario, parse_scenario
-
-    if args.workers is not None and args.scheduler:
-        raise BadArgument("--workers and --scheduler exclude each other")
     t0 = time.monotonic()
-    if args.resume:
-        out = Path(args.resume)
-        path = out / "campaign.json"
-        if not path.is_file():
-            raise BadArgument(f"--resume {out}: no campaign.json (not a campaign directory)")
-        inputs = json.loads(path.read_text())
-        if inputs.get("kind") != "margins":
-            raise BadArgument(f"--resume {out}: a flight campaign (use vega mc run --resume)")
-        scenario = parse_scenario(inputs["scenario_yaml"], f"{path}: scenario_yaml")
-        disp = parse_dispersions(inputs["dispersions_yaml"], inputs["dispersions_path"])
-        seed, runs, table_path = inputs["seed"], inputs["runs"], Path(inputs["table"])
-        times = inputs["times_s"]
-    else:
-        if args.runs is None:
-            raise BadArgument("--runs N is required (or --resume DIR)")
-        times = parse_at(args.at)
-        scenario = load_scenario("nominal")
-        disp = load_dispersions(args.dispersions)
-        seed = _checked_seed(args.seed) or 0
-        runs = args.runs
-        table_path = Path(args.table) if args.table else default_table_path()
-        out = Path(args.out) if args.out else Path(DEFAULT_OUT) / f"margins-seed{seed}-n{runs}"
-    load_controller_table(table_path)            # a bad table: one line, exit 2, before start
-    rows = run_campaign(scenario, disp, runs=runs, seed=seed, out=out,
-                        table_path=table_path.resolve(), workers=args.workers,
-                        scheduler=args.scheduler, resume=bool(args.resume), kind="margins",
-                        times_s=times)
-    inputs = json.loads((out / "campaign.json").read_text())
-    write_results(out, rows)
+    c = _campaign(args, "margins")
+    load_controller_table(c["table_path"])            # a bad table: one line, exit 2
+    rows, inputs = _fly(args, c, "margins")
     summary = summarise_margins(rows, inputs, wall_s=time.monotonic() - t0)
-    (out / "summary.json").write_text(json.dumps(summary, indent=1, sort_keys=True) + "\n")
-    (out / "summary.md").write_text(margins_markdown(summary))
-    print(margins_markdown(summary), end="")
-    print(f"vega mc: {out}/ (results.parquet, summary.json, summary.md)")
-    return 0 if summary["passed"] == summary["runs"] else 1
+    return _write_summary(c["out"], summary, margins_markdown(summary),
+                          "results.parquet, summary.json, summary.md")
 
 
 def _no_action(args) -> int:
     raise BadArgument("vega mc: choose an action (run, margins, rerun)")
 
 
+def _campaign_arguments(parser, what: str, default_out: str) -> None:
+    """The arguments ``vega mc run`` and ``vega mc margins`` share."""
+    parser.add_argument("--runs", type=_positive_int, default=None, metavar="N",
+                        help=f"number of dispersed {what}")
+    parser.add_argument("--dispersions", default=None, metavar="FILE",
+                        help="dispersion file (default: the shipped "
+                             "offline_synthesis/data/dispersions.yaml)")
+    parser.add_argument("--seed", default=None, metavar="S", help="campaign seed (default 0)")
+    parser.add_argument("--out", default=None, metavar="DIR",
+                        help=f"campaign directory (must not exist or be empty; default: "
+                             f"{DEFAULT_OUT}/{default_out})")
+    parser.add_argument("--table", default=None, metavar="FILE",
+                        help="controller table (default: the installed one)")
+    parser.add_argument("--workers", type=_positive_int, default=None, metavar="K",
+                        help="worker processes of the LocalCluster (default: one per core)")
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="run on an existing Dask scheduler (e.g. tcp://127.0.0.1:8786)")
+    parser.add_argument("--resume", default=None, metavar="DIR",
+                        help="finish the campaign in DIR (its own inputs; the others are "
+                             "ignored)")
+
+
 def register(subparsers) -> None:
-    """Add the ``mc`` sub-command (action ``run``)."""
+    """Add the ``mc`` sub-command (actions ``run``, ``margins``, ``rerun``)."""
     parser = subparsers.add_parser(
         "mc", help="Monte Carlo dispersion campaigns on Dask",
         description="Fly dispersed copies of a scenario in process on a Dask cluster and "
@@ -211,47 +229,17 @@ def register(subparsers) -> None:
                     "and i only). Exit 0 all passed, 1 a flight failed, 2 bad input.")
     run.add_argument("--scenario", default="nominal", metavar="NAME|PATH",
                      help="shipped scenario name or YAML file (default: nominal)")
-    run.add_argument("--runs", type=_positive_int, default=None, metavar="N",
-                     help="number of dispersed flights")
-    run.add_argument("--dispersions", default=None, metavar="FILE",
-                     help="dispersion file (default: the shipped "
-                          "offline_synthesis/data/dispersions.yaml)")
-    run.add_argument("--seed", default=None, metavar="S", help="campaign seed (default 0)")
-    run.add_argument("--out", default=None, metavar="DIR",
-                     help=f"campaign directory (must not exist or be empty; default: "
-                          f"{DEFAULT_OUT}/<scenario>-seed<S>-n<N>)")
-    run.add_argument("--table", default=None, metavar="FILE",
-                     help="controller table (default: the installed one)")
-    run.add_argument("--workers", type=_positive_int, default=None, metavar="K",
-                     help="worker processes of the LocalCluster (default: one per core)")
-    run.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                     help="run on an existing Dask scheduler (e.g. tcp://127.0.0.1:8786)")
-    run.add_argument("--resume", default=None, metavar="DIR",
-                     help="finish the campaign in DIR (its own inputs; the others are ignored)")
-    run.set_defaults(func=_run_entry)
+    _campaign_arguments(run, "flights", "<scenario>-seed<S>-n<N>")
+    run.set_defaults(func=_run)
     margins = actions.add_parser(
         "margins", help="margins of the flown controller over dispersed plants",
         description="Classical margins (exact sampled-data loop, vega margins) of the flown "
                     "controller on the nominal schedule at frozen times, for N plants drawn "
                     "from the dispersions (sample i: the campaign seed and i only). Exit 0 "
                     "every plant stable at every time, 1 not, 2 bad input.")
-    margins.add_argument("--runs", type=_positive_int, default=None, metavar="N",
-                         help="number of dispersed plants")
     margins.add_argument("--at", default="10:90:10", metavar="T|START:STOP:STEP",
                          help="frozen times [s] (default 10:90:10)")
-    margins.add_argument("--dispersions", default=None, metavar="FILE",
-                         help="dispersion file (default: the shipped one)")
-    margins.add_argument("--seed", default=None, metavar="S", help="campaign seed (default 0)")
-    margins.add_argument("--out", default=None, metavar="DIR",
-                         help=f"campaign directory (default {DEFAULT_OUT}/margins-seed<S>-n<N>)")
-    margins.add_argument("--table", default=None, metavar="FILE",
-                         help="controller table (default: the installed one)")
-    margins.add_argument("--workers", type=_positive_int, default=None, metavar="K",
-                         help="worker processes of the LocalCluster (default: one per core)")
-    margins.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                         help="run on an existing Dask scheduler")
-    margins.add_argument("--resume", default=None, metavar="DIR",
-                         help="finish the margins campaign in DIR")
+    _campaign_arguments(margins, "plants", "margins-seed<S>-n<N>")
     margins.set_defaults(func=_margins)
     rerun = actions.add_parser(
         "rerun", help="fly one campaign sample through the ROS 2 nodes",
@@ -264,10 +252,3 @@ def register(subparsers) -> None:
     rerun.add_argument("--out", default=None, metavar="RUNDIR",
                        help="where the scenario and the run go (default: DIR/reruns)")
     rerun.set_defaults(func=_rerun)
-
-
-def _run_entry(args: argparse.Namespace) -> int:
-    args.out_is_parent = args.out is None
-    if args.out is None:
-        args.out = DEFAULT_OUT
-    return _run(args)
