@@ -35,7 +35,7 @@ from vega_model.wind import turbulence_params, wind_profile_mps
 from offline_synthesis.weights import THESIS, WeightSet
 
 __all__ = ["GRID_TIMES_S", "GeneralizedPlant", "weighted_plant", "plant_for_simulation",
-           "weight_ss", "W_INPUTS", "W_OUTPUTS", "Y_NAMES"]
+           "weight_ss", "cascade", "W_INPUTS", "W_OUTPUTS", "Y_NAMES"]
 
 GRID_TIMES_S = (10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0)  # thesis §4.3.2
 
@@ -246,7 +246,7 @@ def _notch_inverse(omega: float, depth: float, width: float):
             np.array([[0.0, g]]), np.array([[1.0]]))
 
 
-def _cascade(first, second):
+def cascade(first, second):
     """Series connection second ∘ first of two SISO state-space models."""
     A1, B1, C1, D1 = first
     A2, B2, C2, D2 = second
@@ -362,7 +362,7 @@ def weight_ss(name: str, p: ModelParameters, weights: WeightSet = THESIS,
         ss = _lead_lag(om / ll, om / h)
         if w.notches:
             for omega in (w1, w2):
-                ss = _cascade(ss, _notch_inverse(omega, w.notch_numerator_radps,
+                ss = cascade(ss, _notch_inverse(omega, w.notch_numerator_radps,
                                                  w.notch_denominator_radps))
         gain = 1.0 / (h * _DEG)
     else:

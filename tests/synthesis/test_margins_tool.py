@@ -339,13 +339,14 @@ def test_dispersed_corner_perturbs_as_the_simulation_does(table, context):
 
     uset = UncertaintySet.from_vehicle(context.vehicle)
     corners = M.dispersed_corners(uset)
-    assert len(corners) == 1 + 2 ** 9 + 2 ** 7
+    assert len(corners) == 1 + 2 ** 9 + 2 ** 7 + 1
     assert corners[0] == uset.nominal()
-    for dev in corners[1:]:
+    assert corners[-1] == {**uset.nominal(), "jyy": pytest.approx(4.6e6 / 5.88e6 - 1)}
+    for dev in corners[1:-1]:
         for name, value in dev.items():
             assert value == 0.0 or value in (uset[name].lower, uset[name].upper)
-    assert {M.corner_family(i) for i in (0, 1, 512, 513, 640)} == {"nominal", "rigid",
-                                                                   "bending"}
+    assert [M.corner_family(i) for i in (0, 1, 512, 513, 640, 641)] == [
+        "nominal", "rigid", "rigid", "bending", "bending", "offnominal"]
     t = 47.5
     p0 = context.parameters(t)
     for index in (1, 300, 600):
@@ -415,13 +416,14 @@ def test_cli_dispersed_one_time(tmp_path, capsys):
     capsys.readouterr()
     summary = json.loads((out / "margins.json").read_text())
     disp = summary["dispersed"]
-    assert disp["corners"]["n"] == 641
+    assert disp["corners"]["n"] == 642
     fams = disp["families"]
-    assert fams["all"]["requirements"]["stability"]["n_loops"] == 641
+    assert fams["all"]["requirements"]["stability"]["n_loops"] == 642
     assert fams["rigid"]["n_plants_per_time"] == 512
     assert fams["bending"]["n_plants_per_time"] == 128
+    assert fams["offnominal"]["n_plants_per_time"] == 1
     rows = (out / "margins.csv").read_text().splitlines()
-    assert len(rows) == 1 + 641
+    assert len(rows) == 1 + 642
     worst = (out / "margins_worst.csv").read_text().splitlines()
     assert len(worst) == 2
     w = fams["rigid"]["requirements"]["pm_deg"]

@@ -31,7 +31,7 @@ from vega_gnc.config_files import check_header, installed_config, numeric_arrays
 __all__ = [
     "default_table_path",
     "FORMAT_VERSION", "MEASUREMENT_NAMES", "REQUIRED_METADATA", "ControllerTable",
-    "ControllerTableError", "load_controller_table", "validate_arrays",
+    "ControllerTableError", "load_controller_table", "validate_arrays", "DESIGNS",
 ]
 
 FORMAT_VERSION = 1
@@ -41,6 +41,12 @@ REQUIRED_METADATA = ("input_names", "measurement_sign", "output_name", "interpol
                      "units", "weights", "solver", "versions", "git_revision", "created_utc",
                      "discretisation", "controller_stable")
 _MATRICES = ("A", "B", "C", "D", "Ad", "Bd", "Cd", "Dd")
+DESIGNS = ("lpv", "structured")
+"""``metadata['design']``: ``lpv`` (offline_synthesis.pipeline, γ and the rate bounds are its
+certificate's figures; the default when the key is absent) or ``structured``
+(offline_synthesis.structured: a fixed-structure controller tuned per grid point, which has
+no γ and no rate bounds — the file stores NaN for them, and any other value is refused)."""
+_LPV_ONLY = ("gamma", "gamma_min", "rate_bounds_mps2")
 _REQUIRED_KEYS = ("format_version", "grid_v_mps", "dt_s", "gamma", "gamma_min",
                   "rate_bounds_mps2", "metadata") + _MATRICES
 
@@ -74,6 +80,11 @@ class ControllerTable:
     def n_states(self) -> int:
         """Controller order."""
         return self.Ad.shape[-1]
+
+    @property
+    def design(self) -> str:
+        """``lpv`` or ``structured`` (:data:`DESIGNS`)."""
+        return str(self.metadata.get("design", "lpv"))
 
     @property
     def input_names(self) -> tuple[str, ...]:
@@ -130,8 +141,19 @@ def validate_arrays(path: str, arrays: Mapping[str, np.ndarray]) -> ControllerTa
     """Validate a mapping of named arrays (as stored in the file) into a ControllerTable."""
     meta = check_header(path, arrays, _REQUIRED_KEYS, FORMAT_VERSION, REQUIRED_METADATA,
                         ControllerTableError)
-    num = numeric_arrays(path, arrays, (k for k in _REQUIRED_KEYS if k != "metadata"),
+    design = meta.get("design", "lpv")
+    if design not in DESIGNS:
+        raise _fail(path, f"metadata 'design' {design!r} is not one of {DESIGNS}")
+    skip = _LPV_ONLY if design == "structured" else ()
+    num = numeric_arrays(path, arrays, (k for k in _REQUIRED_KEYS
+                                        if k != "metadata" and k not in skip),
                          ControllerTableError)
+    for key in skip:
+        arr = np.asarray(arrays[key])
+        if arr.dtype.kind != "f" or not np.all(np.isnan(arr)):
+            raise _fail(path, f"'{key}' must be NaN in a structured design (it has no {key})")
+        num[key] = arr.astype(float)
+        num[key].setflags(write=False)
     grid = num["grid_v_mps"]
     if grid.ndim != 1 or grid.size < 2:
         raise _fail(path, "'grid_v_mps' must be a 1-D array of at least 2 velocities")
@@ -168,7 +190,7 @@ def validate_arrays(path: str, arrays: Mapping[str, np.ndarray]) -> ControllerTa
     if not dt > 0.0:
         raise _fail(path, "'dt_s' must be one positive number")
     rb = num["rate_bounds_mps2"]
-    if rb.shape != (2,) or rb[1] < rb[0]:
+    if rb.shape != (2,) or (design == "lpv" and rb[1] < rb[0]):
         raise _fail(path, "'rate_bounds_mps2' must be [lower, upper]")
     stable = np.asarray(meta["controller_stable"], dtype=bool)
     if stable.shape != lead:
@@ -202,11 +224,14 @@ def load_controller_table(path: str | Path) -> ControllerTable:
 
 
 def default_table_path() -> Path:
-    """The installed controller table ``share/vega_gnc/config/lpv_controller.npz``.
+    """The installed controller table the product flies by default,
+    ``share/vega_gnc/config/tvc_controller.npz`` (the robust structured design,
+    docs/FLIGHT_DESIGN.md; the LPV table of ``vega synth`` is installed beside it as
+    ``lpv_controller.npz``).
 
     Raises
     ------
     BadInput
         If the package ``vega_gnc`` is not in the ament index (workspace not built).
     """
-    return installed_config("lpv_controller.npz")
+    return installed_config("tvc_controller.npz")

@@ -6,8 +6,8 @@ the TVC actuator and the linear plant of ``vega linearize`` (offline_synthesis.m
 time: rigid-body gain margins (low: gain reduction, high: gain increase) and phase margin,
 the peak loop gain in each bending band (and the crossover margins of a mode above −6 dB),
 and the closed-loop stability of the exact sampled-data loop. ``--dispersed`` adds 640
-corners of the uncertainty set with the controller on the nominal schedule and reports the
-worst corner per time.
+corners of the uncertainty set and the plant with thesis Table 2.3's pitch inertia, with the
+controller on the nominal schedule, and reports the worst corner per time.
 
 Output: a compact table per time on stdout; with ``--out DIR``: margins.csv, margins.json
 (worst value and where per criterion, pass/fail, unstable loops), margins_over_time.png,
@@ -260,12 +260,13 @@ def register(subparsers) -> None:
                     "phase-stabilised with >= 30 deg and 6 dB). Exit status 0 if the nominal "
                     "plant meets them at every time, 1 if not, 2 on bad input.")
     p.add_argument("--table", metavar="FILE",
-                   help="controller table (default: the installed lpv_controller.npz, the one "
+                   help="controller table (default: the installed tvc_controller.npz, the one "
                         "the controller node flies)")
     p.add_argument("--dispersed", action="store_true",
                    help="also 640 corners of the uncertainty set (thesis Table 2.3 + TVC ±10 %% "
-                        "+ delay ±10 ms), the controller on the nominal schedule; worst corner "
-                        "per time and criterion")
+                        "+ delay ±10 ms) and the plant with Table 2.3's pitch inertia (-21.8 %%), "
+                        "the controller on the nominal schedule; worst corner per time and "
+                        "criterion")
     p.add_argument("--at", default=_DEFAULT_AT, metavar="T|START:STOP:STEP",
                    help=f"flight time(s) in s (default {_DEFAULT_AT})")
     p.add_argument("--out", metavar="DIR",

@@ -1,0 +1,192 @@
+"""The structured controller design (offline_synthesis.structured) against hand references.
+
+* the controller realisation: DC gains per input, the notch's zero at its frequency, the
+  low-pass corner, the order — from transfer-function formulas, not from the code's own
+  pieces;
+* the design plants: the set named in the docstring (sizes, the bending frequencies span
+  exactly the uncertainty bounds, the Table 2.3 J plant);
+* the cost: its closed-loop radius is the exact sampled-data verdict of offline_synthesis.margins
+  (an independent assembly), a destabilising controller is penalised as unstable, a bending
+  mode left unattenuated is flagged;
+* the export: the table loads through the flight loader, NaN where an LPV table has γ, its
+  grid covers the pad and the dispersed burn-out, the parameters reproduce the matrices;
+* the short design run end to end (two anchors, few generations).
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from offline_synthesis import structured as S
+from offline_synthesis.export import discretise
+from offline_synthesis.margins import plant_loop_ss, sampled_data_model, sampled_data_stability
+
+
+@pytest.fixture(scope="module")
+def context():
+    from vega_model.parameters import default_context
+
+    return default_context()
+
+
+@pytest.fixture(scope="module")
+def uset(context):
+    from vega_model.uncertainty import UncertaintySet
+
+    return UncertaintySet.from_vehicle(context.vehicle)
+
+
+def _x(**over):
+    x = np.array(S.START_X, dtype=float)
+    names = [p[0] for p in S.PARAMETERS]
+    for k, v in over.items():
+        x[names.index(k)] = v
+    return x
+
+
+def _tf(A, B, C, D, s):
+    return (C @ np.linalg.solve(s * np.eye(A.shape[0]) - A, B) + D)[0]
+
+
+def test_controller_dc_gains_and_order():
+    x = _x(log10_k_theta=math.log10(1.7), log10_tau_d_s=math.log10(0.4),
+           k_zdot_mrad_per_mps=2.0, k_z_urad_per_m=-30.0)
+    A, B, C, D = S.controller_ss(x, (30.0, 70.0))
+    assert A.shape == (8, 8) and B.shape == (8, 4) and C.shape == (1, 8) and D.shape == (1, 4)
+    dc = _tf(A, B, C, D, 0.0)
+    # low-passes and notches all have unit DC gain: the DC gains are the feedback gains
+    np.testing.assert_allclose(dc, [1.7, 1.7 * 0.4, -30e-6, 2e-3], rtol=1e-9)
+
+
+def test_notch_zero_and_lowpass_corner():
+    w1, w2 = 31.0, 75.0
+    x = _x(notch1_ratio=0.9, notch1_zeta_num=0.0, notch2_zeta_num=0.0,
+           log10_lp1_radps=math.log10(12.0), lp1_zeta=0.5, log10_lp2_radps=2.0, lp2_zeta=1.0)
+    A, B, C, D = S.controller_ss(x, (w1, w2))
+    # a notch with zero numerator damping has a transmission zero at its frequency
+    assert abs(_tf(A, B, C, D, 1j * 0.9 * w1)[0]) < 1e-9
+    assert abs(_tf(A, B, C, D, 1j * S.START_X[9] * w2)[0]) < 1e-9
+    # the response at 12 rad/s: k·LP1(jω_c) (= 1/(2jζ)) times the other sections, by formula
+    s = 1j * 12.0
+    k = 10 ** S.START_X[0]
+
+    def notch(w, zn, zd):
+        return (s * s + 2 * zn * w * s + w * w) / (s * s + 2 * zd * w * s + w * w)
+
+    expected = (k * (1 / (2j * 0.5)) * notch(0.9 * w1, 0.0, S.START_X[8])
+                * notch(S.START_X[9] * w2, 0.0, S.START_X[11]) * 1e4 / (s * s + 2 * 100 * s + 1e4))
+    assert _tf(A, B, C, D, s)[0] == pytest.approx(expected, rel=1e-9)
+
+
+def test_design_deviations_cover_the_bending_ranges(uset):
+    devs = S.design_deviations(uset)
+    fams = [f for _, f, _ in devs]
+    assert fams.count("nominal") == 1
+    assert fams.count("rigid") == 2 ** 6 + 1
+    assert fams.count("bending") == 8 * 2 * 2 + 7 * 2 * 2 + 2 ** 4 * 4
+    for mode in (1, 2):
+        f = uset[f"bending_frequency_{mode}"]
+        values = {round(d[f"bending_frequency_{mode}"], 12) for label, fam, d in devs
+                  if fam == "bending" and label.startswith(f"mode {mode}")}
+        assert min(values) == pytest.approx(f.lower) and max(values) == pytest.approx(f.upper)
+    jyy = [d["jyy"] for label, _, d in devs if "Table 2.3" in label]
+    assert jyy == [pytest.approx(4.6e6 / 5.88e6 - 1.0)]
+
+
+@pytest.fixture(scope="module")
+def ds50(context, uset):
+    return S.design_set(context, 50.0, uset)
+
+
+def test_cost_radius_is_the_exact_sampled_data_verdict(context, ds50):
+    from vega_model.actuator import ActuatorParams
+    from offline_synthesis.margins import total_delay_s
+
+    x = np.array(S.START_X)
+    _, detail = S.evaluate(x, ds50, detail=True)
+    p = context.parameters(50.0)
+    act = ActuatorParams.from_vehicle(context.vehicle)
+    A, B, C = plant_loop_ss(p, act, S.INPUT_NAMES)
+    model = sampled_data_model(A, B, 0.02, total_delay_s(context.vehicle))
+    K = discretise(*S.controller_ss(x, p.omega_radps), 0.02)
+    ref = sampled_data_stability(model, C, K, 1.0, nyquist=True)
+    assert ref["n_unstable"] == ref["n_unstable_nyquist"] == 0
+    # the nominal plant is design plant 0; its radius is below the max over all plants
+    assert detail["max_radius"] >= ref["max_abs_eig"] - 1e-12
+    assert detail["n_unstable"] == 0
+
+
+def test_a_weak_controller_is_penalised_as_unstable(ds50):
+    # k_θ = 0.05 cannot hold the aerodynamically unstable vehicle at max-Q
+    cost, detail = S.evaluate(_x(log10_k_theta=math.log10(0.05)), ds50, detail=True)
+    assert detail["n_unstable"] > 0 and "nominal" in detail["unstable"]
+    assert cost >= 10.0
+    good = S.evaluate(np.array(S.START_X), ds50)
+    assert good < cost
+
+
+def test_an_unfiltered_bending_mode_is_flagged(ds50):
+    # both low-passes at 100 rad/s, no notch depth: the rate gyro sees mode 1 at full gain
+    x = _x(log10_lp1_radps=2.0, log10_lp2_radps=2.0, lp1_zeta=1.0, lp2_zeta=1.0,
+           notch1_zeta_num=0.6, notch1_zeta_den=0.6, notch2_zeta_num=0.6, notch2_zeta_den=0.6)
+    _, detail = S.evaluate(x, ds50, detail=True)
+    assert detail["bending_violations"] > 0 or detail["n_unstable"] > 0
+    _, good = S.evaluate(np.array(S.START_X), ds50, detail=True)
+    assert detail["penalty"] > good["penalty"]
+
+
+def test_short_design_and_export(context, tmp_path):
+    from vega_gnc.controller_table import load_controller_table
+
+    design = S.design_flight(context, anchors_s=(46.0, 50.0), grid_step_s=2.0, maxiter=1,
+                             popsize=2, workers=0, polish_maxfev=20, progress=lambda _: None,
+                             check_between=False)
+    np.testing.assert_allclose(design.grid_times_s, [46.0, 48.0, 50.0])
+    table = S.write_structured_table(tmp_path / "t.npz", design, context)
+    again = load_controller_table(tmp_path / "t.npz")
+    assert again.design == "structured" and math.isnan(again.gamma)
+    assert again.measurement_sign == 1 and again.input_names == S.INPUT_NAMES
+    v46, v50 = (context.parameters(t).v_mps for t in (46.0, 50.0))
+    assert table.grid_v_mps[0] == S.V_BELOW_LIFTOFF_MPS
+    assert table.grid_v_mps[1] == pytest.approx(v46)
+    assert table.grid_v_mps[-2] == pytest.approx(v50)
+    assert table.grid_v_mps[-1] == pytest.approx(S.V_BEYOND_BURNOUT * v50)
+    # the matrices at a grid point are the realisation of that point's parameters
+    A, B, C, D = S.controller_ss(design.x[1], context.parameters(48.0).omega_radps)
+    np.testing.assert_allclose(table.A[2], A)
+    np.testing.assert_allclose(table.D[2], D)
+    np.testing.assert_allclose(table.Dd[2], discretise(A, B, C, D, 0.02)[3])
+    # the controller step 4 evaluates between grid points is the one the table flies there
+    from offline_synthesis.margins import flown_controller
+
+    flown, _, clamped = flown_controller(table, context.parameters(47.0).v_mps)
+    between = S.flown_between(context, (46.0, design.x[0]), (48.0, design.x[1]), 47.0)
+    assert not clamped
+    for a, b in zip(flown, between):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
+
+
+
+def test_loader_rules_for_structured_tables(context, tmp_path):
+    """NaN γ only in a structured table; a structured table with a γ, an LPV table without
+    one and an unknown design are refused in one line."""
+    import json
+
+    from vega_gnc.controller_table import ControllerTableError, validate_arrays
+
+    design = S.design_flight(context, anchors_s=(50.0,), grid_step_s=2.0, maxiter=1,
+                             popsize=2, workers=0, polish_maxfev=5, progress=lambda _: None)
+    S.write_structured_table(tmp_path / "t.npz", design, context)
+    with np.load(tmp_path / "t.npz") as f:
+        arrays = dict(f)
+    assert validate_arrays("t.npz", arrays).design == "structured"
+    meta = json.loads(str(arrays["metadata"]))
+    with pytest.raises(ControllerTableError, match="'gamma' must be NaN"):
+        validate_arrays("t.npz", {**arrays, "gamma": np.array(0.9)})
+    lpv = {**arrays, "metadata": np.array(json.dumps({**meta, "design": "lpv"}))}
+    with pytest.raises(ControllerTableError, match="'gamma' has non-finite values"):
+        validate_arrays("t.npz", lpv)
+    odd = {**arrays, "metadata": np.array(json.dumps({**meta, "design": "pid"}))}
+    with pytest.raises(ControllerTableError, match="metadata 'design' 'pid'"):
+        validate_arrays("t.npz", odd)
