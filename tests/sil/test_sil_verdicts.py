@@ -1,6 +1,7 @@
 """The flight-design verdicts in the SIL: `vega sil run` with the shipped controller table and
-guidance reference passes `nominal` (the `make sil` default), `thesis`, `gust` and
-`wind_change` (exit 0); the no-bias case fails its load requirement (exit 1)."""
+guidance reference passes `nominal` (the `make sil` default), `thesis`, `gust`, `wind_change`
+and the first bending frequency at −20 % (exit 0); the no-bias case fails its load requirement
+(exit 1); `severe`, declared off-design, is reported and not gated (exit 0)."""
 
 import pytest
 
@@ -9,7 +10,8 @@ from sil_flights import run_layout_in, vega_sil_run
 pytestmark = pytest.mark.ros
 
 
-@pytest.mark.parametrize("scenario", ["nominal", "thesis", "gust", "wind_change"])
+@pytest.mark.parametrize("scenario", ["nominal", "thesis", "gust", "wind_change",
+                                      "dispersed_bending_low"])
 def test_design_scenarios_pass(tmp_path, scenario):
     result = vega_sil_run(["--scenario", scenario, "--out", tmp_path])
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-2000:]
@@ -22,4 +24,17 @@ def test_no_bias_fails_the_load_requirement(tmp_path):
     assert result.returncode == 1, result.stderr[-2000:]
     verdict = next(line for line in result.stdout.splitlines() if line.startswith("verdict:"))
     assert verdict.startswith("verdict: FAIL: Load performance Qα:"), verdict
-    assert "Lateral" not in verdict and "Actuation" not in verdict
+    # the structured design's drift gains are weak (tuned for margins): without the wind
+    # bias the drift budget goes too (docs/FLIGHT_DESIGN.md §6); actuation stays inside
+    assert "Actuation" not in verdict
+
+
+def test_off_design_severe_is_reported_not_gated(tmp_path):
+    """`severe` is declared off-design in its scenario file: its requirement verdict is
+    printed (it fails) and the command exits 0."""
+    result = vega_sil_run(["--scenario", "severe", "--out", tmp_path])
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-2000:]
+    verdict = next(line for line in result.stdout.splitlines() if line.startswith("verdict:"))
+    assert verdict.startswith("verdict: FAIL:") and "Qα" in verdict, verdict
+    assert ("reported and not gated: scenario 'severe' is declared off-design"
+            in result.stdout + result.stderr)

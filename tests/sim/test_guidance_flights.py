@@ -74,12 +74,20 @@ def flights():
 
 def test_wind_bias_keeps_the_load_inside_the_envelope(flights):
     """The same flight (seed, wind, noise) with and without the reference: without it the steady
-    wind exceeds the envelope at Mach ≈ 0.31 (≈ 10.7 s); with it the worst ratio is below 0.7
-    and the drift stays inside the budget."""
+    wind exceeds the envelope at Mach ≈ 0.31 (10.5–11.6 s; with the structured design's weak
+    drift gains the drift then builds a second, larger exceedance near 80 s); with it the worst
+    ratio is below 0.7 and the drift stays inside the budget."""
+    from vega_sim.requirements import load_requirements
+
     biased, unbiased = (flights[n].metrics() for n in ("nominal", "nominal_no_bias"))
     qa_b, qa_u = (r.results[0] for r in (biased, unbiased))
     assert qa_u.key == qa_b.key == "q_alpha"
-    assert not qa_u.passed and 10.5 <= qa_u.time_s <= 11.6
+    assert not qa_u.passed
+    spec, res_u = load_requirements(), flights["nominal_no_bias"]
+    ratio = (np.abs(res_u.q_alpha_pa_rad)
+             / np.interp(res_u.mach, spec.envelope_mach, spec.envelope_pa_rad))
+    window = (res_u.t_s >= 10.5) & (res_u.t_s <= 11.6)
+    assert ratio[window].max() > 1.0
     assert qa_b.passed and abs(qa_b.value) / qa_b.bound < 0.7
     assert biased.passed
     res = flights["nominal"]

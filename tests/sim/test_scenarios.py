@@ -35,8 +35,9 @@ uncertainty: {thrust: 0.05, delay_s: 0.01}
 
 
 def test_shipped_scenarios():
-    assert scenario_names() == ("gust", "nominal", "nominal_no_bias", "severe", "thesis",
-                                "wind_change")
+    assert scenario_names() == ("dispersed_bending_high", "dispersed_bending_low",
+                                "dispersed_mode2", "gust", "nominal", "nominal_no_bias",
+                                "severe", "thesis", "wind_change")
     data = load_vehicle_data()
     thesis = load_scenario("thesis")
     assert (thesis.t_start_s, thesis.t_end_s, thesis.plant) == (10.0, 90.0, "linear")
@@ -59,6 +60,9 @@ def test_shipped_scenarios():
     assert abs(g.start_s + g.duration_s / 2 - t_max_q) <= 0.1     # peak at max-Q
     severe = load_scenario("severe")
     assert severe.wind.turbulence == "severe" and severe.wind.profile
+    assert severe.off_design.startswith("severe Dryden turbulence")
+    assert "\n" not in severe.off_design
+    assert [n for n in scenario_names() if load_scenario(n).off_design] == ["severe"]
     for name in scenario_names():
         assert load_scenario(scenario_path(name)) == load_scenario(name)
 
@@ -121,6 +125,9 @@ def _error(tmp_path, text, name="demo"):
      "uncertainty.thrust"),
     ("uncertainty: {thrust: 0.05, delay_s: 0.01}", "uncertainty: {delay_s: 0.0005}",
      "uncertainty.delay_s"),
+    ("seed: 7", "seed: 7\noff_design: ''", "off_design"),
+    ("seed: 7", "seed: 7\noff_design: 3", "off_design"),
+    ("seed: 7", "seed: 7\noff_design: \"a\\nb\"", "off_design"),
 ])
 def test_loader_names_the_field(tmp_path, old, new, field):
     assert old in GOOD
@@ -135,8 +142,8 @@ def test_loader_other_errors(tmp_path):
     no_wind_mapping = GOOD[:GOOD.index("wind:")] + "wind: 3\nsensor_noise: false\nseed: 7\n"
     assert "field 'wind': must be a mapping" in _error(tmp_path, no_wind_mapping)
     with pytest.raises(ValueError, match=re.escape(
-            "unknown scenario 'nope' (shipped: gust, nominal, nominal_no_bias, severe, "
-            "thesis, wind_change)")):
+            "unknown scenario 'nope' (shipped: dispersed_bending_high, dispersed_bending_low, "
+            "dispersed_mode2, gust, nominal, nominal_no_bias, severe, thesis, wind_change)")):
         load_scenario("nope")
     with pytest.raises(ValueError, match="cannot read scenario"):
         load_scenario(tmp_path / "missing.yaml")

@@ -22,7 +22,7 @@ ignores the rest; a bad value → one line, exit 2), declared once in
 descriptors, answered by ``ros2 param describe`` until the start barrier is complete; the run
 planner writes the file from the same names): ``scenario`` (string, default "nominal"),
 ``seed`` (int, −1 = the scenario's), ``realtime`` (bool, plant), ``controller_table``
-(string, "" = installed ``share/vega_gnc/config/lpv_controller.npz``; controller and recorder),
+(string, "" = installed ``share/vega_gnc/config/tvc_controller.npz``; controller and recorder),
 ``bag_path`` (string, recorder, must not exist), ``participants`` (string array, default
 :data:`vega_bus.barrier.PARTICIPANTS`), ``barrier_timeout_s`` (float, 30 s; ``vega sil run``
 writes :data:`vega_bringup.orchestrate.DEFAULT_BARRIER_TIMEOUT_S`), ``stall_timeout_s``

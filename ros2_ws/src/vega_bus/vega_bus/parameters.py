@@ -130,7 +130,7 @@ REALTIME = ParameterSpec(
 CONTROLLER_TABLE = ParameterSpec(
     "controller_table", "",
     "Controller table (.npz) the controller flies and the recorder names in the bag's "
-    "metadata; empty: the installed share/vega_gnc/config/lpv_controller.npz.",
+    "metadata; empty: the installed share/vega_gnc/config/tvc_controller.npz.",
     constraints="a readable controller table whose sample time is the controller period",
     nodes=("tvc_controller", "recorder"))
 GUIDANCE_REFERENCE = ParameterSpec(

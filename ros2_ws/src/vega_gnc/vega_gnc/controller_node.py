@@ -3,7 +3,7 @@
 Start-up, before the start barrier (bad input → one line, exit 2):
 
 1. parameter ``controller_table`` ("" = the installed
-   ``share/vega_gnc/config/lpv_controller.npz``) → :func:`load_controller_table` (a malformed
+   ``share/vega_gnc/config/tvc_controller.npz``) → :func:`load_controller_table` (a malformed
    table is rejected here);
 2. the run description from the time master on ``/vega/run``
    (:class:`vega_bus.schedule.RunInfo`: span, loop timing and the guidance reference of the

@@ -32,6 +32,9 @@ File format (SI units, radians; ``#`` comments allowed)::
     sensor_noise: true              # INS noise (thesis Eq. 4.18)
     seed: 1                         # integer >= 0
     uncertainty: {}                 # optional: deviations by name (vega_model.uncertainty)
+    off_design: "reason"            # optional: the scenario lies outside the design envelope;
+                                    # `vega sil run` reports its requirement verdict but
+                                    # does not gate on it (health checks still gate)
 
 ``thesis_constant_dryden``: the thesis (§5.2, Fig. 5.2) set its wind input to a constant 1,
 which its weight W_w = 3 (§4.5.1) scaled before the Dryden filter (Eq. 2.53). Here: 3 × the
@@ -135,6 +138,7 @@ class Scenario:
     seed: int = 0
     uncertainty: tuple[tuple[str, float], ...] = ()
     guidance: str = DEFAULT_GUIDANCE
+    off_design: str = ""
 
     def __post_init__(self):
         try:
@@ -212,7 +216,7 @@ def scenario_file(name_or_path: str | Path) -> Path:
 # ----------------------------------------------------------------------------- parsing
 _TOP_REQUIRED = ("name", "description", "t_start_s", "t_end_s", "plant", "wind",
                  "sensor_noise", "seed")
-_TOP_OPTIONAL = ("initial_state", "uncertainty", "guidance")
+_TOP_OPTIONAL = ("initial_state", "uncertainty", "guidance", "off_design")
 _WIND_REQUIRED = ("profile", "turbulence", "gust")
 _WIND_OPTIONAL = ("thesis_constant_dryden", "profile_scale", "profile_shift_m")
 _GUST_KEYS = ("start_s", "amplitude_mps", "duration_s")
@@ -328,6 +332,12 @@ def parse_scenario(text: str, source: str = "<scenario>",
         if source != "<scenario>":  # a relative path is relative to the scenario's folder
             guidance = str(Path(source).parent / guidance)
 
+    off_design = _string(tree.get("off_design", ""), "off_design", where).strip()
+    if "off_design" in tree and not off_design:
+        raise where.error("off_design", "must be the reason the scenario is off-design, got ''")
+    if len(off_design) > 500 or "\n" in off_design:
+        raise where.error("off_design", "must be one line of at most 500 characters")
+
     uncertainty = tree.get("uncertainty")
     uncertainty = {} if uncertainty is None else uncertainty
     if not isinstance(uncertainty, Mapping):
@@ -344,7 +354,7 @@ def parse_scenario(text: str, source: str = "<scenario>",
         t_end_s=_number(tree["t_end_s"], "t_end_s", where),
         plant=plant, initial_state=state, wind=wind_settings,
         sensor_noise=_boolean(tree["sensor_noise"], "sensor_noise", where),
-        seed=seed, uncertainty=deviations, guidance=guidance)
+        seed=seed, uncertainty=deviations, guidance=guidance, off_design=off_design)
     try:
         return Scenario(**values)
     except ValueError as exc:  # the range checks of the constructor: name the file instead
@@ -372,6 +382,8 @@ def dump_scenario(scenario: Scenario) -> str:
         "uncertainty": {k: float(v) for k, v in scenario.uncertainty},
         "guidance": scenario.guidance,
     }
+    if scenario.off_design:
+        tree["off_design"] = scenario.off_design
     import yaml
 
     return yaml.safe_dump(tree, sort_keys=False)

@@ -1,0 +1,88 @@
+"""The shipped default controller table (vega_gnc/config/tvc_controller.npz, `vega design`)
+meets the flight-design requirements it was tuned for, checked with the independent margin
+tool (offline_synthesis.margins: its own frequency grid, the flown interpolated controller):
+
+* it is the structured design and covers the whole flight (pad noise to dispersed burn-out);
+* every nominal frozen loop 0–100 s every 0.5 s is stable with the flown controller;
+* heritage margins on the nominal plant at lift-off, max-Q and burn-out and between grid points;
+* the bending-edge plants of thesis Table 2.3 and the Table 2.3 inertia stay stable at max-Q.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from offline_synthesis import margins as M
+from offline_synthesis.structured import V_BELOW_LIFTOFF_MPS, V_BEYOND_BURNOUT
+from vega_gnc.controller_table import default_table_path, load_controller_table
+
+
+@pytest.fixture(scope="module")
+def context():
+    from vega_model.parameters import default_context
+
+    return default_context()
+
+
+@pytest.fixture(scope="module")
+def table():
+    return load_controller_table(default_table_path())
+
+
+def test_structured_and_whole_flight(table, context):
+    assert table.design == "structured" and math.isnan(table.gamma)
+    assert table.grid_v_mps[0] == V_BELOW_LIFTOFF_MPS
+    assert table.grid_v_mps[-1] == pytest.approx(V_BEYOND_BURNOUT * context.parameters(100).v_mps)
+    assert all(table.metadata["controller_stable"])
+
+
+def test_every_nominal_frozen_loop_is_stable(table, context):
+    rows = M.frozen_stability(table, context, M.default_times())
+    assert not any(r["clamped"] for r in rows)
+    # 0 s: no thrust yet (no control authority): the loop is open, marginal at |z| = 1
+    assert [r["t_s"] for r in rows if r["n_unstable"]] == []
+    assert max(r["max_abs_eig"] for r in rows if r["t_s"] >= 0.5) < 1.0
+
+
+@pytest.mark.parametrize("t_s", [0.5, 5.0, 11.0, 31.0, 47.5, 59.0, 75.0, 93.0, 99.0])
+def test_nominal_heritage_margins(table, context, t_s):
+    """Grid points and points between them (odd seconds: the interpolated controller)."""
+    from vega_model.uncertainty import UncertaintySet
+
+    uset = UncertaintySet.from_vehicle(context.vehicle)
+    row = M.analyse_time(table, context, t_s, [(0, uset.nominal())])[0]
+    ok = M.criteria_ok(row)
+    assert all(ok.values()), ({k: v for k, v in ok.items() if not v},
+                              {k: row[k] for k in ("pm_deg", "gm_low_db", "gm_high_db",
+                                                   "b1_peak_db", "b2_peak_db")})
+
+
+def test_bending_edges_and_table_2_3_inertia_stable_at_max_q(table, context):
+    from vega_model.uncertainty import UncertaintySet
+
+    uset = UncertaintySet.from_vehicle(context.vehicle)
+    t_q = M.max_q_time(context)
+    cases = [{"bending_frequency_1": f, "psi_mode_1": s, "delay_s": d}
+             for f in (-0.20, -0.12, 0.15) for s in (-0.4, 0.3) for d in (-0.01, 0.01)]
+    cases += [{"bending_frequency_2": f, "psi_mode_2": 0.5, "delay_s": 0.01}
+              for f in (-0.25, 0.2)]
+    cases.append({"jyy": M.JYY_TABLE_2_3})
+    corners = [(k, {**uset.nominal(), **c}) for k, c in enumerate(cases)]
+    rows = M.analyse_time(table, context, t_q, corners, nyquist=False)
+    unstable = [cases[r["corner"]] for r in rows if r["n_unstable"]]
+    assert unstable == []
+    assert np.all(np.isfinite([r["max_abs_eig"] for r in rows]))
+
+
+def test_burn_out_phase_margin_is_the_one_known_miss(table, context):
+    """At 100 s (thrust tail-off; one controller is held from 86 s because the velocity, the
+    scheduling variable, hardly changes over the tail-off) the phase margin is 28.4°, the one
+    nominal heritage miss (docs/FLIGHT_DESIGN.md §6); everything else holds there."""
+    from vega_model.uncertainty import UncertaintySet
+
+    uset = UncertaintySet.from_vehicle(context.vehicle)
+    row = M.analyse_time(table, context, 100.0, [(0, uset.nominal())])[0]
+    ok = M.criteria_ok(row)
+    assert {k for k, v in ok.items() if not v} == {"pm_deg"}
+    assert 28.0 <= row["pm_deg"] < 30.0
