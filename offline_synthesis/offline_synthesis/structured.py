@@ -539,8 +539,8 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
             ds = design_set(context, t_mid, _context_and_set()[1])
             K = flown_between(context, (a, done[a][0]), (b, done[b][0]), t_mid)
             if misses_requirement(evaluate_discrete(K, ds, detail=True)[1]):
-                missing.append((t_mid, seed + 3000 + len(done), maxiter, popsize,
-                                polish_maxfev, done[a][0], done[b][0]))
+                missing.append((t_mid, seed + 3000 + len(done) + len(missing), maxiter,
+                                popsize, polish_maxfev, done[a][0], done[b][0]))
         if not missing:
             break
         for t, x, cost, detail in _pool_map(_anchor_task, missing):
