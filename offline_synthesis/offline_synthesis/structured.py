@@ -282,7 +282,12 @@ def evaluate(x, ds: DesignSet, detail: bool = False):
 
 def evaluate_discrete(K, ds: DesignSet, detail: bool = False):
     """:func:`evaluate` for a given discrete controller (Ad, Bd, Cd, Dd): e.g. the flown one
-    between two grid points, interpolated as the runtime does."""
+    between two grid points, interpolated as the runtime does.
+
+    The penalty weights (10 per unstable plant, 100 per unit of |z| above 1 − 1e-4, 1 per degree
+    and 2 per dB of margin missed, 5 per unit of bending violation, 2 between the bands) and
+    the objective weights (1, 0.5, 0.05) are dimensionless tuning choices (assumption: large
+    enough that any requirement miss outweighs every objective), not physical numbers."""
     z = np.exp(1j * ds.w_radps * ds.dt_s)
     Kr = _discrete_response(*K, z)                                  # (w, 4)
     L = -SIGN * np.einsum("pwi,wi->pw", ds.Gd, Kr)                  # (plants, w)
@@ -331,8 +336,7 @@ def evaluate_discrete(K, ds: DesignSet, detail: bool = False):
 
 
 def tune_point(ds: DesignSet, x0=None, seed: int = 0, maxiter: int = 60,
-               popsize: int = 12, progress: Callable[[str], None] | None = None,
-               polish_maxfev: int = 1500):
+               popsize: int = 12, polish_maxfev: int = 1500):
     """Tune one flight time: differential evolution (seeded, from ``x0`` in its initial
     population when given), then Nelder–Mead polish. Returns (x, cost, detail)."""
     from scipy.optimize import differential_evolution, minimize
@@ -353,11 +357,6 @@ def tune_point(ds: DesignSet, x0=None, seed: int = 0, maxiter: int = 60,
                    options={"maxfev": polish_maxfev, "xatol": 1e-4, "fatol": 1e-6})
     x = np.clip(loc.x if loc.fun < res.fun else res.x, LOWER, UPPER)
     cost, detail = evaluate(x, ds, detail=True)
-    if progress is not None:
-        progress(f"t = {ds.t_s:g} s: cost {cost:.4f}, PM {detail['pm_deg']:.1f}°, "
-                 f"GM {detail['gm_low_db']:.1f}/{detail['gm_high_db']:.1f} dB, "
-                 f"unstable {detail['n_unstable']}, worst rigid |1+L| "
-                 f"{detail['sm_worst_rigid']:.3f}")
     return x, cost, detail
 
 
@@ -477,7 +476,13 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
        where it misses a requirement, a grid point is added there (tuned from scratch, seeded
        with its neighbours); repeated once for the new midpoints.
     5. From :data:`TAIL_OFF_HOLD_S` on, the parameters of that time (the tail-off).
+
+    The tuning tasks (steps 1–4, run in spawned processes) build the default model context
+    themselves; ``context`` is used for the checks made here and must be that default one.
     """
+    from vega_model.uncertainty import UncertaintySet
+
+    uset = UncertaintySet.from_vehicle(context.vehicle)
     anchors = sorted(float(t) for t in anchors_s)
     grid_t = np.unique(np.concatenate([
         anchors, np.arange(math.ceil(anchors[0] / grid_step_s) * grid_step_s, anchors[-1],
@@ -506,7 +511,7 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
     for t in anchors:
         x, detail = results[t]
         if detail is None:
-            ds = design_set(context, t, _context_and_set()[1])
+            ds = design_set(context, t, uset)
             detail = evaluate(x, ds, detail=True)[1]
         done[t] = (x, detail, "anchor")
     intervals = []
@@ -526,7 +531,7 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
               for k, t in enumerate(grid_t) if done[float(t)][2] != "anchor"
               and misses_requirement(done[float(t)][1])]
     for t, x, cost, detail in _pool_map(_anchor_task, rescue):
-        if cost < evaluate(done[t][0], design_set(context, t, _context_and_set()[1])):
+        if cost < evaluate(done[t][0], design_set(context, t, uset)):
             done[t] = (x, detail, "re-tuned from scratch")
         progress(_line("from scratch", t, cost, detail))
     # 4. the flown controller between grid points (interpolated as the runtime does): where
@@ -536,7 +541,7 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
         missing = []
         for a, b in zip(times[:-1], times[1:]):
             t_mid = 0.5 * (a + b)
-            ds = design_set(context, t_mid, _context_and_set()[1])
+            ds = design_set(context, t_mid, uset)
             K = flown_between(context, (a, done[a][0]), (b, done[b][0]), t_mid)
             if misses_requirement(evaluate_discrete(K, ds, detail=True)[1]):
                 missing.append((t_mid, seed + 3000 + len(done) + len(missing), maxiter,
@@ -550,7 +555,7 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
     if TAIL_OFF_HOLD_S in done:
         held = done[TAIL_OFF_HOLD_S][0]
         for t in [t for t in done if t > TAIL_OFF_HOLD_S]:
-            detail = evaluate(held, design_set(context, t, _context_and_set()[1]), detail=True)[1]
+            detail = evaluate(held, design_set(context, t, uset), detail=True)[1]
             done[t] = (held, detail, f"held from {TAIL_OFF_HOLD_S:g} s (tail-off)")
     grid_t = np.array(sorted(done))
     xs = np.array([done[float(t)][0] for t in grid_t])

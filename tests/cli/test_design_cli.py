@@ -1,11 +1,11 @@
 """`vega design`: refusals of bad arguments (one line, exit 2, nothing written); the tuning
-itself is tested in tests/synthesis/test_structured_design.py (a full run takes ≈ 40 min)."""
+itself is tested in tests/synthesis/test_structured_design.py (a full run takes most of an hour)."""
 
 from pathlib import Path
 
 import pytest
 
-from vega_cli import cli
+from cli_errors import assert_refused
 
 LPV = Path(__file__).resolve().parents[2] / "ros2_ws/src/vega_gnc/config/lpv_controller.npz"
 
@@ -19,12 +19,26 @@ LPV = Path(__file__).resolve().parents[2] / "ros2_ws/src/vega_gnc/config/lpv_con
     (["--out", "{d}/t.npz", "--maxiter", "x"], "invalid int value"),
 ])
 def test_bad_arguments(tmp_path, capsys, args, message):
-    argv = ["design", *(a.replace("{d}", str(tmp_path)) for a in args)]
-    try:
-        code = cli.main(argv)
-    except SystemExit as exc:
-        code = exc.code
-    assert code == 2
-    err = capsys.readouterr().err
-    assert message in err and err.count("\n") == 1, err
+    assert_refused(["design", *(a.replace("{d}", str(tmp_path)) for a in args)], capsys,
+                   message)
     assert not any(tmp_path.iterdir())
+
+
+def test_anchors_without_parameters_are_refused(tmp_path, capsys):
+    """A structured table whose metadata lacks an anchor's parameters: one line, exit 2."""
+    import json
+
+    import numpy as np
+
+    shipped = LPV.with_name("tvc_controller.npz")
+    with np.load(shipped) as f:
+        arrays = dict(f)
+    meta = json.loads(str(arrays["metadata"]))
+    meta["anchors_s"] = meta["anchors_s"] + [123.0]
+    arrays["metadata"] = np.array(json.dumps(meta))
+    table = tmp_path / "in" / "t.npz"
+    table.parent.mkdir()
+    np.savez(table, **arrays)
+    assert_refused(["design", "--out", str(tmp_path / "t.npz"), "--anchors-from", str(table)],
+                   capsys, "its anchors have no 14 tuned parameters")
+    assert not (tmp_path / "t.npz").exists()

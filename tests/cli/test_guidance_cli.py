@@ -5,6 +5,7 @@ import json
 
 import pytest
 
+from cli_errors import assert_refused
 from vega_cli import cli
 from vega_gnc.guidance_reference import load_guidance_reference
 
@@ -29,12 +30,6 @@ def test_writes_a_reference_the_flight_side_loads(tmp_path, capsys):
     (["--out", "{d}/ref.npz", "--wind-shift-m", "nan"], "must be finite"),
 ])
 def test_bad_arguments(tmp_path, capsys, args, message):
-    argv = ["guidance", *(a.replace("{d}", str(tmp_path)) for a in args)]
-    try:
-        code = cli.main(argv)
-    except SystemExit as exc:
-        code = exc.code
-    assert code == 2
-    err = capsys.readouterr().err
-    assert message in err and err.count("\n") == 1, err
+    assert_refused(["guidance", *(a.replace("{d}", str(tmp_path)) for a in args)], capsys,
+                   message)
     assert not any(tmp_path.iterdir())

@@ -6,9 +6,10 @@ burn-out; in parallel, ``--workers``), parameters carried to a 2 s grid and re-t
 they miss a requirement, then the table in the controller-table format (``design:
 structured``) and its JSON report (``FILE.json``). The product flies the committed copy,
 ``vega_gnc/config/tvc_controller.npz``; regenerate it with ``--out
-ros2_ws/src/vega_gnc/config/tvc_controller.npz`` (≈ 40 min on 2 cores; ``--anchors-from
-TABLE`` reuses an earlier table's anchors and re-tunes only the grid) and verify it with
-``vega margins --dispersed``. Exit 0, or 2 on bad input.
+ros2_ws/src/vega_gnc/config/tvc_controller.npz`` (not timed as one run: on 2 cores the
+anchors took ≈ 25 min, the grid walk ≈ 13 min, rescue and added points ≈ 20 min;
+``--anchors-from TABLE`` reuses an earlier table's anchors and re-tunes only the grid) and
+verify it with ``vega margins --dispersed``. Exit 0, or 2 on bad input.
 """
 
 from __future__ import annotations
@@ -17,24 +18,20 @@ import argparse
 
 from vega_core.errors import BadArgument
 
+from vega_cli.commands._paths import npz_out
+
 __all__ = ["register"]
 
 
 def _run(args: argparse.Namespace) -> int:
     import json
     import time
-    from pathlib import Path
-
     from vega_model.parameters import default_context
 
     from offline_synthesis.margins import json_ready
-    from offline_synthesis.structured import design_flight, write_structured_table
+    from offline_synthesis.structured import PARAMETERS, design_flight, write_structured_table
 
-    out = Path(args.out)
-    if out.suffix != ".npz":
-        raise BadArgument(f"--out {out}: must end in .npz")
-    if out.is_dir():
-        raise BadArgument(f"--out {out}: is a directory")
+    out = npz_out(args.out)
     if not 1 <= args.maxiter <= 1000:
         raise BadArgument(f"--maxiter {args.maxiter}: must be within 1..1000")
     if not 0 <= args.workers <= 64:
@@ -45,10 +42,15 @@ def _run(args: argparse.Namespace) -> int:
 
         source = load_controller_table(args.anchors_from)     # BadFile: one line, exit 2
         meta = source.metadata
-        if source.design != "structured" or "parameters_per_grid_time" not in meta:
+        keys = ("anchors_s", "grid_times_s", "parameters_per_grid_time")
+        if source.design != "structured" or any(k not in meta for k in keys):
             raise BadArgument(f"--anchors-from {args.anchors_from}: not a structured design "
                               "table (no tuned parameters in its metadata)")
         by_time = dict(zip(meta["grid_times_s"], meta["parameters_per_grid_time"]))
+        if any(t not in by_time or len(by_time[t]) != len(PARAMETERS)
+               for t in meta["anchors_s"]):
+            raise BadArgument(f"--anchors-from {args.anchors_from}: its anchors have no "
+                              f"{len(PARAMETERS)} tuned parameters in its metadata")
         anchor_x = {float(t): by_time[t] for t in meta["anchors_s"]}
     start = time.perf_counter()
     context = default_context()
@@ -83,7 +85,7 @@ def register(subparsers) -> None:
                    help="differential-evolution generations per anchor (default 80)")
     p.add_argument("--anchors-from", metavar="TABLE",
                    help="reuse the anchor times' parameters of an earlier structured table "
-                        "(skips their from-scratch search: re-tunes the grid in ≈ 15 min)")
+                        "(skips their from-scratch search and re-tunes only the grid)")
     p.add_argument("--workers", type=int, default=2,
                    help="processes for the anchors (default 2; 0 = in this process)")
     p.set_defaults(func=_run)

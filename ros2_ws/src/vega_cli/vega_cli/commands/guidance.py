@@ -17,6 +17,8 @@ import math
 
 from vega_core.errors import BadArgument
 
+from vega_cli.commands._paths import npz_out
+
 __all__ = ["register"]
 
 
@@ -36,11 +38,7 @@ def _run(args: argparse.Namespace) -> int:
     from offline_synthesis.guidance import (DesignWind, GuidanceWeights, design_reference,
                                             plot_guidance, write_guidance_reference)
 
-    out = Path(args.out)
-    if out.suffix != ".npz":
-        raise BadArgument(f"--out {out}: must end in .npz")
-    if out.is_dir():
-        raise BadArgument(f"--out {out}: is a directory")
+    out = npz_out(args.out)
     if args.plot and not args.plot.endswith(".png"):
         raise BadArgument(f"--plot {args.plot}: must end in .png")
     if abs(args.wind_scale) > 3.0 or abs(args.wind_shift_m) > 10_000.0:
