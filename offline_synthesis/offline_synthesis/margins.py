@@ -1016,6 +1016,8 @@ def _fmt(x) -> str:
         return "1" if x else "0"
     if isinstance(x, (int, np.integer)):
         return str(int(x))
+    if isinstance(x, str):
+        return x
     return f"{float(x):.6g}"
 
 

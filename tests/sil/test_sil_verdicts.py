@@ -1,7 +1,8 @@
 """The flight-design verdicts in the SIL: `vega sil run` with the shipped controller table and
-guidance reference passes `nominal` (the `make sil` default), `thesis`, `gust`, `wind_change`
-and the first bending frequency at −20 % (exit 0); the no-bias case fails its load requirement
-(exit 1); `severe`, declared off-design, is reported and not gated (exit 0)."""
+guidance reference passes `nominal` (the `make sil` default), `thesis`, `gust`, `wind_change`,
+the first bending frequency at −20 % and the worst case of `vega robust` (exit 0); the no-bias
+case fails its load requirement (exit 1); `severe`, declared off-design, is reported and not
+gated (exit 0)."""
 
 import pytest
 
@@ -11,7 +12,7 @@ pytestmark = pytest.mark.ros
 
 
 @pytest.mark.parametrize("scenario", ["nominal", "thesis", "gust", "wind_change",
-                                      "dispersed_bending_low"])
+                                      "dispersed_bending_low", "dispersed_worst"])
 def test_design_scenarios_pass(tmp_path, scenario):
     result = vega_sil_run(["--scenario", scenario, "--out", tmp_path])
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-2000:]

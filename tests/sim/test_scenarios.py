@@ -36,8 +36,8 @@ uncertainty: {thrust: 0.05, delay_s: 0.01}
 
 def test_shipped_scenarios():
     assert scenario_names() == ("dispersed_bending_high", "dispersed_bending_low",
-                                "dispersed_mode2", "gust", "nominal", "nominal_no_bias",
-                                "severe", "thesis", "wind_change")
+                                "dispersed_mode2", "dispersed_worst", "gust", "nominal",
+                                "nominal_no_bias", "severe", "thesis", "wind_change")
     data = load_vehicle_data()
     thesis = load_scenario("thesis")
     assert (thesis.t_start_s, thesis.t_end_s, thesis.plant) == (10.0, 90.0, "linear")
@@ -143,7 +143,8 @@ def test_loader_other_errors(tmp_path):
     assert "field 'wind': must be a mapping" in _error(tmp_path, no_wind_mapping)
     with pytest.raises(ValueError, match=re.escape(
             "unknown scenario 'nope' (shipped: dispersed_bending_high, dispersed_bending_low, "
-            "dispersed_mode2, gust, nominal, nominal_no_bias, severe, thesis, wind_change)")):
+            "dispersed_mode2, dispersed_worst, gust, nominal, nominal_no_bias, severe, thesis, "
+            "wind_change)")):
         load_scenario("nope")
     with pytest.raises(ValueError, match="cannot read scenario"):
         load_scenario(tmp_path / "missing.yaml")

@@ -1,0 +1,125 @@
+"""Figures of ``vega robust``.
+
+* ``robust_over_time.png`` — per frozen time: the disk margin α of the nominal plant and of
+  the worst case found (with the disk gain and phase margins they mean), the rigid-body
+  classical margins of the worst case, and the μ bounds (upper: LFT + ab13md; lower: the
+  destabilising scale along the worst-case ray) against 1;
+* ``mu_max_q.png`` — the μ upper bound over frequency at the time of maximum dynamic pressure,
+  with the bending bands of the set shaded and the lower bound from the worst-case search;
+* ``time_margins.png`` — the time-domain margins per flight segment (gain increase, gain
+  reduction, extra delay) beside the frequency-domain margins of the nominal plant there.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+__all__ = ["plot_robust_over_time", "plot_mu_max_q", "plot_time_margins"]
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _col(rows, key):
+    out = np.array([np.nan if r.get(key) is None else r[key] for r in rows], dtype=float)
+    out[~np.isfinite(out)] = np.nan
+    return out
+
+
+def plot_robust_over_time(path, rows: Sequence[Mapping]) -> Path:
+    """Write ``robust_over_time.png``; return its path."""
+    plt = _plt()
+    t = _col(rows, "t_s")
+    fig, axes = plt.subplots(3, 1, figsize=(10, 10), sharex=True)
+    ax = axes[0]
+    ax.plot(t, _col(rows, "nominal_disk_alpha"), "C0", label="disk margin α, nominal plant")
+    ax.plot(t, _col(rows, "worst_disk_alpha"), "C3", label="disk margin α, worst case found")
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.set_ylabel("balanced disk margin α [-]")
+    ax.legend(loc="upper right", fontsize=8)
+    ax2 = ax.twinx()
+    ax2.plot(t, _col(rows, "worst_disk_pm_deg"), "C3:", lw=1)
+    ax2.set_ylabel("worst-case disk phase margin [deg] (dotted)")
+    ax = axes[1]
+    ax.plot(t, _col(rows, "worst_gm_low_db"), "C0", label="GM low (reduction), worst case")
+    ax.plot(t, _col(rows, "worst_gm_high_db"), "C1", label="GM high (increase), worst case")
+    ax.plot(t, _col(rows, "worst_pm_deg") / 5.0, "C2", label="PM / 5, worst case [deg/5]")
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.set_ylabel("rigid-body margins of the worst case [dB]")
+    ax.set_ylim(-10, 30)
+    ax.legend(loc="upper right", fontsize=8)
+    ax = axes[2]
+    ax.plot(t, _col(rows, "mu_upper"), "C3", label="μ upper bound (LFT, ab13md)")
+    ax.plot(t, _col(rows, "mu_lower"), "C0", marker=".", ls="none",
+            label="μ lower bound (destabilising scale along the worst-case ray)")
+    ax.axhline(1.0, color="r", lw=1, label="μ = 1: the whole set")
+    ax.set_ylabel("peak μ over frequency [-]")
+    ax.set_xlabel("flight time [s]")
+    ax.legend(loc="upper right", fontsize=8)
+    fig.suptitle("vega robust: worst case over the uncertainty set per frozen time")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_mu_max_q(path, row: Mapping, omega_bands: Sequence[tuple[float, float]]) -> Path:
+    """Write ``mu_max_q.png`` from one row of :func:`offline_synthesis.robust.analyse_time`
+    (with its ``mu_curve``); ``omega_bands`` are the dispersed bending bands [rad/s]."""
+    plt = _plt()
+    curve = row["mu_curve"]
+    w = np.asarray(curve["w_radps"], dtype=float)
+    fig, ax = plt.subplots(figsize=(10, 5))
+    for a, b in omega_bands:
+        ax.axvspan(a, b, color="0.9", lw=0)
+    ax.semilogx(w, np.asarray(curve["mu_upper"], dtype=float), "C3", label="μ upper bound")
+    if row.get("mu_lower") is not None:
+        ax.axhline(row["mu_lower"], color="C0", ls="--",
+                   label=f"μ lower bound {row['mu_lower']:.3f} (worst-case ray)")
+    ax.axhline(1.0, color="r", lw=1, label="μ = 1")
+    ax.set_xlabel("ω [rad/s] (shaded: dispersed bending bands)")
+    ax.set_ylabel("μ [-]")
+    ax.set_title(f"μ bounds at max-Q, t = {row['t_s']:g} s")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_time_margins(path, rows: Sequence[Mapping]) -> Path:
+    """Write ``time_margins.png`` from the rows of the time-domain margins."""
+    plt = _plt()
+    names = [r["segment"] for r in rows]
+    x = np.arange(len(rows))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
+    ax = axes[0]
+    ax.bar(x - 0.2, _col(rows, "gain_up_db"), 0.4, label="time domain: gain increase")
+    ax.bar(x + 0.2, -_col(rows, "gain_down_db"), 0.4, label="time domain: gain reduction (−)")
+    ax.plot(x, _col(rows, "freq_gm_high_db"), "k^", label="frequency domain: GM high")
+    ax.plot(x, -_col(rows, "freq_gm_low_db"), "kv", label="frequency domain: GM low (−)")
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.set_xticks(x, names)
+    ax.set_ylabel("gain margin [dB]")
+    ax.legend(fontsize=7)
+    ax = axes[1]
+    ax.bar(x, _col(rows, "delay_margin_ms"), 0.5, label="time domain: extra delay")
+    ax.plot(x, _col(rows, "freq_delay_margin_ms"), "k^",
+            label="frequency domain: PM / ω_c")
+    ax.set_xticks(x, names)
+    ax.set_ylabel("delay margin [ms]")
+    ax.legend(fontsize=7)
+    fig.suptitle("time-domain margins (nonlinear loop) beside the frequency-domain ones")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
