@@ -39,7 +39,8 @@ def _f(x, spec=".3f") -> str:
 def _line(r) -> str:
     bend = "ok" if r["worst_bending_1_ok"] and r["worst_bending_2_ok"] else "FAIL"
     return (f"{r['t_s']:6.1f} | {_f(r['nominal_disk_alpha']):>6} "
-            f"{_f(r['nominal_disk_gm_db'], '.1f'):>5} {_f(r['nominal_disk_pm_deg'], '.1f'):>5} | {_f(r['worst_disk_alpha']):>6} "
+            f"{_f(r['nominal_disk_gm_db'], '.1f'):>5} {_f(r['nominal_disk_pm_deg'], '.1f'):>5} | "
+            f"{_f(r['worst_disk_alpha']):>6} "
             f"{_f(r['worst_disk_gm_db'], '.1f'):>5} {_f(r['worst_disk_pm_deg'], '.1f'):>5} "
             f"{_f(r['worst_gm_low_db'], '.1f'):>5} {_f(r['worst_gm_high_db'], '.1f'):>5} "
             f"{_f(r['worst_pm_deg'], '.1f'):>6} {bend:>4} {r['worst_source'][:6]:>6} | "
