@@ -85,8 +85,10 @@ def _run(args: argparse.Namespace) -> int:
     from vega_model.parameters import default_context
 
     times = parse_at(args.at)
-    if args.workers is not None and args.workers < 1:
-        raise BadArgument(f"--workers {args.workers}: need at least 1")
+    if args.workers is not None and not 1 <= args.workers <= 64:
+        raise BadArgument(f"--workers {args.workers}: must be within 1..64")
+    if not 0 <= args.seed < 2 ** 32:
+        raise BadArgument(f"--seed {args.seed}: must be within 0..2**32-1")
     context = default_context()
     lo, hi = context.time_range_s
     for t in times:
