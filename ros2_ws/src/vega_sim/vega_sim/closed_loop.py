@@ -23,15 +23,24 @@ time are :func:`vega_sim.plant_step.parameters_at` —, ``make_actuator``; the c
 :class:`vega_gnc.controller_step.ControllerStep` from the table and the loop timing) and
 converts stamps with :mod:`vega_bus.timing`; tests/sim/test_closed_loop.py checks that
 nodes built and driven that way reproduce :func:`run_scenario` bit for bit.
+
+Test hook (off by default, no SIL counterpart): ``run_scenario(..., perturbation=
+LoopPerturbation(...))`` inserts a gain and/or a delay at the actuator input inside a time
+window (:class:`LoopPerturbation`; the time-domain margins of
+:mod:`offline_synthesis.time_margins`). Without it the run is the one above, bit for bit.
 """
 
 from __future__ import annotations
 
+import bisect
+import math
 from dataclasses import dataclass, fields
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
+from vega_bus.records import CommandOut
 from vega_bus.timing import LoopTiming
 from vega_gnc.controller_runtime import RuntimeLimits
 from vega_gnc.controller_table import ControllerTable, load_controller_table
@@ -46,7 +55,7 @@ from vega_sim.assembly import loop_timing, make_actuator, make_ins, make_plant
 from vega_sim.requirements import RequirementReport, RequirementSpec, evaluate_requirements
 
 __all__ = ["FROM_SCENARIO", "make_controller", "scenario_reference", "LoopSteps", "build_steps",
-           "SimulationResult", "run_scenario"]
+           "SimulationResult", "LoopPerturbation", "run_scenario"]
 
 FROM_SCENARIO = "from scenario"
 """``reference`` of :func:`make_controller`: the guidance reference the scenario names."""
@@ -175,6 +184,111 @@ class SimulationResult:
                                      beta_cmd_rad=self.beta_cmd_rad, spec=spec)
 
 
+@dataclass(frozen=True)
+class LoopPerturbation:
+    """A perturbation of the loop at the actuator input inside a time window (a test hook).
+
+    Without it the actuator holds, from time t on, the newest command whose stamp + actuator
+    latency is ≤ t: call that β_c(t). With it, the actuator's input is
+
+    * k·β_c(t − Δ) for t in [``t0_ms``, ``t1_ms``) (k = ``gain``, Δ = ``delay_ms``),
+    * β_c(t) elsewhere,
+
+    switched at t0 and t1 exactly (1 ms grid): a gain and a transport delay inserted at the
+    actuator input, the loop broken where the frequency-domain margins break it
+    (:mod:`offline_synthesis.margins`). At t0 the nozzle goes back to the command of Δ
+    earlier; at t1 it returns to the newest one. The controller is not told (``cmd_rad``
+    records what it computed, ``beta_cmd_rad`` what the actuator held); the actuator's
+    position and rate limits stay as they are (the saturation is part of the nonlinear loop).
+
+    Attributes
+    ----------
+    t0_ms, t1_ms
+        Window on the actuator's time [ms], t0_ms <= t1_ms (whole ms, vega_bus.timing).
+    gain
+        Finite factor on the command [1].
+    delay_ms
+        Extra delay >= 0 [ms] on the 1 ms grid of the loop.
+    """
+
+    t0_ms: int
+    t1_ms: int
+    gain: float = 1.0
+    delay_ms: int = 0
+
+    def __post_init__(self):
+        for name in ("t0_ms", "t1_ms", "delay_ms"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+                raise ValueError(f"LoopPerturbation.{name} must be a whole number of ms, "
+                               f"got {value!r}")
+        if not self.t0_ms <= self.t1_ms:
+            raise ValueError(f"LoopPerturbation window [{self.t0_ms}, {self.t1_ms}) ms: need "
+                           "t0_ms <= t1_ms")
+        if self.delay_ms < 0:
+            raise ValueError(f"LoopPerturbation.delay_ms must be >= 0, got {self.delay_ms!r}")
+        if isinstance(self.gain, bool) or not math.isfinite(self.gain):
+            raise ValueError(f"LoopPerturbation.gain must be a finite number, got {self.gain!r}")
+
+
+class _Held(NamedTuple):
+    """A command as :meth:`ActuatorStep.receive` takes it."""
+
+    stamp_ms: int
+    seq: int
+    deflection_cmd_rad: float
+
+
+class _PerturbedActuator:
+    """The actuator node behind a :class:`LoopPerturbation`.
+
+    It keeps the controller's commands (application time = stamp + latency, deflection) and,
+    before each frame, hands the actuator one command per change of its perturbed input in the
+    frame (a command's application, shifted by Δ inside the window, and the window's edges),
+    stamped so that the actuator applies it at that time."""
+
+    def __init__(self, perturbation: LoopPerturbation, actuator: ActuatorStep,
+                 timing: LoopTiming):
+        self._p, self._actuator = perturbation, actuator
+        self._latency_ms, self._frame_ms = timing.actuator_latency_ms, timing.frame_ms
+        self._times: list[int] = []                # application times, increasing
+        self._values: list[float] = []
+        self._seq = 0
+
+    def receive(self, cmd: CommandOut) -> None:
+        """Keep ``cmd`` (commands come in stamp order)."""
+        self._times.append(cmd.stamp_ms + self._latency_ms)
+        self._values.append(cmd.deflection_cmd_rad)
+
+    def _input(self, t_ms: int) -> float | None:
+        """The perturbed actuator input from ``t_ms`` on (None: no command yet)."""
+        p = self._p
+        inside = p.t0_ms <= t_ms < p.t1_ms
+        k = bisect.bisect_right(self._times, t_ms - p.delay_ms if inside else t_ms) - 1
+        if k < 0:
+            return None
+        return p.gain * self._values[k] if inside else self._values[k]
+
+    def advance(self, t_ms: int):
+        """Hand the actuator the input changes in [t_ms, t_ms + frame), then
+        :meth:`ActuatorStep.advance`."""
+        p, times, end = self._p, self._times, t_ms + self._frame_ms
+
+        def applied(shift):               # application times + shift that fall in the frame
+            return (a + shift for a in times[bisect.bisect_left(times, t_ms - shift):
+                                             bisect.bisect_left(times, end - shift)])
+
+        changes = {t for t in (p.t0_ms, p.t1_ms) if t_ms <= t < end}
+        changes.update(t for t in applied(0) if not p.t0_ms <= t < p.t1_ms)
+        changes.update(t for t in applied(p.delay_ms) if p.t0_ms <= t < p.t1_ms)
+        for t in sorted(changes):
+            value = self._input(t)
+            if value is not None:
+                self._actuator.receive(_Held(t - self._latency_ms, self._seq, value))
+                self._seq += 1
+        return self._actuator.advance(t_ms)
+
+
 def _columns(values: list, n_fields: int) -> np.ndarray:
     """Records of ``n_fields`` numbers, concatenated, as a (n_fields, n_records) float array
     with contiguous rows."""
@@ -184,7 +298,8 @@ def _columns(values: list, n_fields: int) -> np.ndarray:
 def run_scenario(scenario: Scenario | str | Path, table: ControllerTable | str | Path,
                  seed: int | None = None, *, context: ModelContext | None = None,
                  parameter_refresh_ms: int | None = None,
-                 limits: RuntimeLimits = RuntimeLimits()) -> SimulationResult:
+                 limits: RuntimeLimits = RuntimeLimits(),
+                 perturbation: LoopPerturbation | None = None) -> SimulationResult:
     """Fly a scenario in process and return its time histories.
 
     Parameters
@@ -197,6 +312,9 @@ def run_scenario(scenario: Scenario | str | Path, table: ControllerTable | str |
         Overrides the scenario's seed.
     context, parameter_refresh_ms, limits
         See :func:`build_steps`.
+    perturbation
+        Scale and/or delay the commands of a window at the actuator input (a test hook,
+        :class:`LoopPerturbation`); None (default): the flight as the SIL flies it.
 
     Raises
     ------
@@ -212,6 +330,8 @@ def run_scenario(scenario: Scenario | str | Path, table: ControllerTable | str |
     nodes = build_steps(scenario, table, seed=seed, context=context,
                         parameter_refresh_ms=parameter_refresh_ms, limits=limits)
     plant, ins, controller, actuator = nodes.plant, nodes.ins, nodes.controller, nodes.actuator
+    if perturbation is not None:
+        actuator = _PerturbedActuator(perturbation, actuator, nodes.timing)
     at_ms = plant.track.at_ms
     # flat lists of numbers (the per-step objects die at once: no garbage-collector load)
     truths, bending, measurements, commands = [], [], [], []

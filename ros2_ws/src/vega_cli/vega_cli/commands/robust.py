@@ -66,7 +66,7 @@ def _time_domain(args, table_path, out_dir, progress) -> list[dict]:
     rows = TM.time_domain_margins(table_path, workers=args.workers_n, progress=progress)
     print("time-domain margins (nonlinear in-process loop, perturbation inside the segment "
           "only) beside the frequency-domain margins of the nominal plant:")
-    print(TM.format_rows(rows))
+    print(TM.markdown(rows))
     if out_dir is not None:
         from offline_synthesis.robust_plots import plot_time_margins
 
