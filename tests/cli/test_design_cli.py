@@ -17,6 +17,9 @@ LPV = Path(__file__).resolve().parents[2] / "ros2_ws/src/vega_gnc/config/lpv_con
     (["--out", "{d}/t.npz", "--anchors-from", str(LPV)], "not a structured design table"),
     (["--out", "{d}/t.npz", "--anchors-from", "{d}/missing.npz"], "no such file"),
     (["--out", "{d}/t.npz", "--maxiter", "x"], "invalid int value"),
+    (["--out", "{d}/t.npz", "--repair-from", str(LPV)], "--repair-from"),
+    (["--out", "{d}/t.npz", "--repair-from", str(LPV), "--anchors-from", str(LPV)],
+     "--anchors-from and --repair-from: give one of them"),
 ])
 def test_bad_arguments(tmp_path, capsys, args, message):
     assert_refused(["design", *(a.replace("{d}", str(tmp_path)) for a in args)], capsys,

@@ -84,7 +84,12 @@ def test_design_deviations_cover_the_bending_ranges(uset):
     fams = [f for _, f, _ in devs]
     assert fams.count("nominal") == 1
     assert fams.count("rigid") == 2 ** 6 + 1
-    assert fams.count("bending") == 8 * 2 * 2 + 7 * 2 * 2 + 2 ** 4 * 4
+    # mode 1: 8 frequencies × 2 shapes × 4 loop corners; mode 2: 7 × 2 × 2; both: 2^4 × 4
+    assert fams.count("bending") == 8 * 2 * 4 + 7 * 2 * 2 + 2 ** 4 * 4
+    # the same-sense loop corner of `vega robust`'s worst case is among the mode-1 plants
+    assert any(d["thrust"] > 0 and d["actuator"] > 0 and d["delay_s"] < 0
+               and d["bending_frequency_1"] == pytest.approx(uset["bending_frequency_1"].lower)
+               for label, _, d in devs if label.startswith("mode 1"))
     for mode in (1, 2):
         f = uset[f"bending_frequency_{mode}"]
         values = {round(d[f"bending_frequency_{mode}"], 12) for label, fam, d in devs
@@ -190,3 +195,28 @@ def test_loader_rules_for_structured_tables(context, tmp_path):
     odd = {**arrays, "metadata": np.array(json.dumps({**meta, "design": "pid"}))}
     with pytest.raises(ControllerTableError, match="metadata 'design' 'pid'"):
         validate_arrays("t.npz", odd)
+
+
+@pytest.mark.parametrize("gain, phase_deg, ok", [
+    (0.08, -47.0, True), (0.5, -47.0, True),        # 8 dB below / above −1 at the crossing
+    (0.3, -47.0, False), (0.15, -47.0, False),      # 3.5 dB above, 2.5 dB below
+    (0.3, -20.0, False), (0.4, -10.0, False),       # and a gain crossover with PM 20° / 24°
+])
+def test_exact_band_criterion_agrees_with_the_margin_tool(gain, phase_deg, ok):
+    """band_criterion_misses against margins.extract_margins + bending_ok (the verification's
+    own implementation) on a damped resonance L = g·e^{jφ}·ω₀²/(s² + 2ζω₀s + ω₀²)·e^{−sτ}
+    whose band holds phase and gain crossovers of known size."""
+    from offline_synthesis.margins import bending_ok, extract_margins
+
+    w0, zeta, tau = 15.0, 0.1, 0.05
+    w = np.geomspace(1.0, 60.0, 6000)
+    s = 1j * w
+    L = (gain * np.exp(1j * math.radians(phase_deg)) * w0 ** 2
+         / (s * s + 2 * zeta * w0 * s + w0 ** 2) * np.exp(-s * tau))
+    band = (w >= 0.8 * w0) & (w <= 1.2 * w0)
+    gm_miss, pm_miss = S.band_criterion_misses(L[None, :], band[None, :])
+    row = extract_margins(w, L, (w0, 10 * w0))
+    assert bending_ok(row, 1) == ok
+    assert (gm_miss[0] == 0.0 and pm_miss[0] == 0.0) == ok
+    assert gm_miss[0] == pytest.approx(max(6.0 - row["b1_gm_db"], 0.0), abs=0.02)
+    assert pm_miss[0] == pytest.approx(max(30.0 - row["b1_pm_deg"], 0.0), abs=0.2)

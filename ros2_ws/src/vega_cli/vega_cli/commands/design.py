@@ -8,8 +8,10 @@ structured``) and its JSON report (``FILE.json``). The product flies the committ
 ``vega_gnc/config/tvc_controller.npz``; regenerate it with ``--out
 ros2_ws/src/vega_gnc/config/tvc_controller.npz`` (not timed as one run: on 2 cores the
 anchors took ≈ 25 min, the grid walk ≈ 13 min, rescue and added points ≈ 20 min;
-``--anchors-from TABLE`` reuses an earlier table's anchors and re-tunes only the grid) and
-verify it with ``vega margins --dispersed``. Exit 0, or 2 on bad input.
+``--anchors-from TABLE`` reuses an earlier table's anchors and re-tunes only the grid;
+``--repair-from TABLE`` keeps every grid point of an earlier table that meets the current
+requirements and re-tunes the others) and verify it with ``vega margins --dispersed`` and
+``vega robust``. Exit 0, or 2 on bad input.
 """
 
 from __future__ import annotations
@@ -37,25 +39,32 @@ def _run(args: argparse.Namespace) -> int:
     if not 0 <= args.workers <= 64:
         raise BadArgument(f"--workers {args.workers}: must be within 0..64")
     anchor_x = None
-    if args.anchors_from:
+    if args.anchors_from and args.repair_from:
+        raise BadArgument("--anchors-from and --repair-from: give one of them")
+    source_path = args.anchors_from or args.repair_from
+    option = "--anchors-from" if args.anchors_from else "--repair-from"
+    if source_path:
         from vega_gnc.controller_table import load_controller_table
 
-        source = load_controller_table(args.anchors_from)     # BadFile: one line, exit 2
+        source = load_controller_table(source_path)     # BadFile: one line, exit 2
         meta = source.metadata
         keys = ("anchors_s", "grid_times_s", "parameters_per_grid_time")
         if source.design != "structured" or any(k not in meta for k in keys):
-            raise BadArgument(f"--anchors-from {args.anchors_from}: not a structured design "
+            raise BadArgument(f"{option} {source_path}: not a structured design "
                               "table (no tuned parameters in its metadata)")
         by_time = dict(zip(meta["grid_times_s"], meta["parameters_per_grid_time"]))
-        if any(t not in by_time or len(by_time[t]) != len(PARAMETERS)
-               for t in meta["anchors_s"]):
-            raise BadArgument(f"--anchors-from {args.anchors_from}: its anchors have no "
+        used = meta["grid_times_s"] if args.repair_from else meta["anchors_s"]
+        if any(t not in by_time or len(by_time[t]) != len(PARAMETERS) for t in used):
+            raise BadArgument(f"{option} {source_path}: its "
+                              f"{'grid points' if args.repair_from else 'anchors'} have no "
                               f"{len(PARAMETERS)} tuned parameters in its metadata")
-        anchor_x = {float(t): by_time[t] for t in meta["anchors_s"]}
+        anchor_x = {float(t): by_time[t] for t in used}
     start = time.perf_counter()
     context = default_context()
+    kwargs = {"anchors_s": sorted(anchor_x)} if args.repair_from else {}
     design = design_flight(context, seed=args.seed, maxiter=args.maxiter,
                            workers=args.workers, anchor_x=anchor_x,
+                           repair=bool(args.repair_from), **kwargs,
                            progress=lambda line: print(line, flush=True))
     table = write_structured_table(out, design, context)
     report = {"table": str(out), "run_time_s": time.perf_counter() - start,
@@ -83,6 +92,11 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=int, default=1, help="seed of the searches (default 1)")
     p.add_argument("--maxiter", type=int, default=80,
                    help="differential-evolution generations per anchor (default 80)")
+    p.add_argument("--repair-from", metavar="TABLE",
+                   help="keep every grid point of an earlier structured table that meets every "
+                        "requirement of the current design set, re-tune the others from "
+                        "scratch, then check between grid points (a repair after a "
+                        "requirement was added)")
     p.add_argument("--anchors-from", metavar="TABLE",
                    help="reuse the anchor times' parameters of an earlier structured table "
                         "(skips their from-scratch search and re-tunes only the grid)")
