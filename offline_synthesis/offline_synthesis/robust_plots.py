@@ -61,7 +61,7 @@ def plot_robust_over_time(path, rows: Sequence[Mapping]) -> Path:
     ax.plot(t, _col(rows, "mu_upper"), "C3", label="μ upper bound (LFT, ab13md)")
     ax.plot(t, _col(rows, "mu_lower"), "C0", marker=".", ls="none",
             label="μ lower bound (destabilising scale along the worst-case ray)")
-    ax.axhline(1.0, color="r", lw=1, label="μ = 1: the whole set")
+    ax.axhline(1.0, color="k", ls="--", lw=1, label="μ = 1: the whole set")
     ax.set_ylabel("peak μ over frequency [-]")
     ax.set_xlabel("flight time [s]")
     ax.legend(loc="upper right", fontsize=8)
