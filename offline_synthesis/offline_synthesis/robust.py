@@ -20,8 +20,8 @@ controller interpolated as the runtime does):
     gives μ ≥ 1/s* over the box (the box scaled by s* contains an unstable plant). Scales are
     capped where a parameter would leave its physical domain (relative deviations > −0.9, total
     delay ≥ 0) and at :data:`S_MAX`; if none is found the bound is reported as ``None`` (not
-    established along that ray). The μ *upper* bound is :mod:`offline_synthesis.mu_analysis`'s
-    (an LFT of the set, continuous-equivalent loop); comparing them shows the gap.
+    established along that ray). A μ *upper* bound (an LFT of the set and Slycot's ``ab13md``,
+    issue 14 item 3b) is not built yet: without it the set's stability rests on the search.
 (c) **disk margins** at the actuator input, nominal and at the worst case: α, the disk gain
     margin DGM = (2 + α)/(2 − α) (a simultaneous gain change in [1/DGM, DGM] …) and disk
     phase margin DPM = 2·atan(α/2) (… or a phase change up to ±DPM, or any combination in the
@@ -261,10 +261,10 @@ _FINE_KEYS = ("gm_low_db", "gm_high_db", "pm_deg", "b1_peak_db", "b1_pm_deg", "b
               "disk_w_radps")
 
 
-def analyse_time(table, context, t_s: float, seed: int = 0, mu: bool = True,
+def analyse_time(table, context, t_s: float, seed: int = 0,
                  search: Mapping = SEARCH) -> dict:
-    """(a), (b), (c) and, with ``mu``, the μ upper bound at one frozen time: one flat row
-    (plus ``worst_deviations`` and, with μ, ``mu_curve``)."""
+    """(a), (b) and (c) at one frozen time: one flat row (plus ``worst_deviations`` and
+    ``max_radius_deviations``)."""
     start = _time.perf_counter()
     pt = robust_point(table, context, t_s)
     wc = worst_case(pt, seed=seed, search=search)
@@ -284,15 +284,6 @@ def analyse_time(table, context, t_s: float, seed: int = 0, mu: bool = True,
     row.update({f"worst_{k}": fine[k] for k in _FINE_KEYS})
     row["worst_deviations"] = worst["deviations"]
     row["max_radius_deviations"] = pt.max_radius_dev
-    if mu:
-        from offline_synthesis.mu_analysis import mu_at_time
-
-        res = mu_at_time(table, context, t_s)
-        row.update(mu_upper=res["mu_peak"], mu_w_peak_radps=res["w_peak_radps"],
-                   mu_centre_stable=bool(res["centre_stable"]),
-                   mu_fit_error=res["fit_error"])
-        row["mu_curve"] = {"w_radps": np.asarray(res["w_radps"]).tolist(),
-                           "mu_upper": np.asarray(res["mu_upper"]).tolist()}
     row["run_time_s"] = _time.perf_counter() - start
     return row
 
@@ -309,12 +300,12 @@ def _init_worker(table_path: str) -> None:
 
 
 def _task(args) -> dict:
-    t_s, seed, mu = args
-    return analyse_time(_WORKER["table"], _WORKER["context"], t_s, seed=seed, mu=mu)
+    t_s, seed = args
+    return analyse_time(_WORKER["table"], _WORKER["context"], t_s, seed=seed)
 
 
 def sweep(table_path: str, times: Sequence[float], workers: int = 2, seed: int = 0,
-          mu: bool = True, progress: Callable[[str], None] | None = None) -> dict:
+          progress: Callable[[str], None] | None = None) -> dict:
     """:func:`analyse_time` at every time, in ``workers`` processes (``spawn``, one BLAS
     thread each; 0: in this process). Progress: one line per finished time.
 
@@ -324,16 +315,14 @@ def sweep(table_path: str, times: Sequence[float], workers: int = 2, seed: int =
         ``rows`` (by time), ``run_time_s``, ``workers``.
     """
     start = _time.perf_counter()
-    tasks = [(float(t), int(seed), bool(mu)) for t in times]
+    tasks = [(float(t), int(seed)) for t in times]
     rows: list[dict] = []
 
     def report(row):
         if progress is not None:
-            mu_txt = (f", mu <= {row['mu_upper']:.3f}" if row.get("mu_upper") is not None
-                      else "")
             progress(f"robust: {len(rows)}/{len(tasks)} t = {row['t_s']:g} s: worst disk "
-                     f"margin {row['worst_disk_alpha']:.3f} (max |z| {row['max_radius']:.5f})"
-                     f"{mu_txt}, {_time.perf_counter() - start:.0f} s elapsed")
+                     f"margin {row['worst_disk_alpha']:.3f} (max |z| {row['max_radius']:.5f}), "
+                     f"{_time.perf_counter() - start:.0f} s elapsed")
 
     if workers <= 0:
         _init_worker(table_path)
@@ -368,12 +357,6 @@ def summarise(rows: Sequence[Mapping]) -> dict:
     bend = [r["t_s"] for r in rows if not (r["worst_bending_1_ok"] and r["worst_bending_2_ok"])]
     out["unstable_times_s"] = unstable
     out["worst_case_bending_fail_times_s"] = bend
-    mus = [r for r in rows if r.get("mu_upper") is not None]
-    if mus:
-        r = max(mus, key=lambda row: row["mu_upper"])
-        out["mu_upper"] = {"value": r["mu_upper"], "t_s": r["t_s"],
-                           "w_radps": r["mu_w_peak_radps"]}
-        out["mu_below_1_times"] = sum(1 for row in mus if row["mu_upper"] < 1.0)
     lows = [r for r in rows if r["mu_lower"] is not None]
     out["mu_lower"] = ({"value": max(r["mu_lower"] for r in lows),
                         "t_s": max(lows, key=lambda row: row["mu_lower"])["t_s"]}

@@ -1,11 +1,9 @@
 """Figures of ``vega robust``.
 
 * ``robust_over_time.png`` — per frozen time: the disk margin α of the nominal plant and of
-  the worst case found (with the disk gain and phase margins they mean), the rigid-body
-  classical margins of the worst case, and the μ bounds (upper: LFT + ab13md; lower: the
-  destabilising scale along the worst-case ray) against 1;
-* ``mu_max_q.png`` — the μ upper bound over frequency at the time of maximum dynamic pressure,
-  with the bending bands of the set shaded and the lower bound from the worst-case search;
+  the worst case found (with the disk phase margin it means), the rigid-body classical margins
+  of the worst case, and the μ lower bound (the destabilising scale along the worst-case ray)
+  against 1;
 * ``time_margins.png`` — the time-domain margins per flight segment (gain increase, gain
   reduction, extra delay) beside the frequency-domain margins of the nominal plant there.
 """
@@ -17,7 +15,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["plot_robust_over_time", "plot_mu_max_q", "plot_time_margins"]
+__all__ = ["plot_robust_over_time", "plot_time_margins"]
 
 
 def _plt():
@@ -58,38 +56,13 @@ def plot_robust_over_time(path, rows: Sequence[Mapping]) -> Path:
     ax.set_ylim(-10, 30)
     ax.legend(loc="upper right", fontsize=8)
     ax = axes[2]
-    ax.plot(t, _col(rows, "mu_upper"), "C3", label="μ upper bound (LFT, ab13md)")
     ax.plot(t, _col(rows, "mu_lower"), "C0", marker=".", ls="none",
             label="μ lower bound (destabilising scale along the worst-case ray)")
     ax.axhline(1.0, color="k", ls="--", lw=1, label="μ = 1: the whole set")
-    ax.set_ylabel("peak μ over frequency [-]")
+    ax.set_ylabel("μ lower bound [-]")
     ax.set_xlabel("flight time [s]")
     ax.legend(loc="upper right", fontsize=8)
     fig.suptitle("vega robust: worst case over the uncertainty set per frozen time")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
-
-
-def plot_mu_max_q(path, row: Mapping, omega_bands: Sequence[tuple[float, float]]) -> Path:
-    """Write ``mu_max_q.png`` from one row of :func:`offline_synthesis.robust.analyse_time`
-    (with its ``mu_curve``); ``omega_bands`` are the dispersed bending bands [rad/s]."""
-    plt = _plt()
-    curve = row["mu_curve"]
-    w = np.asarray(curve["w_radps"], dtype=float)
-    fig, ax = plt.subplots(figsize=(10, 5))
-    for a, b in omega_bands:
-        ax.axvspan(a, b, color="0.9", lw=0)
-    ax.semilogx(w, np.asarray(curve["mu_upper"], dtype=float), "C3", label="μ upper bound")
-    if row.get("mu_lower") is not None:
-        ax.axhline(row["mu_lower"], color="C0", ls="--",
-                   label=f"μ lower bound {row['mu_lower']:.3f} (worst-case ray)")
-    ax.axhline(1.0, color="r", lw=1, label="μ = 1")
-    ax.set_xlabel("ω [rad/s] (shaded: dispersed bending bands)")
-    ax.set_ylabel("μ [-]")
-    ax.set_title(f"μ bounds at max-Q, t = {row['t_s']:g} s")
-    ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

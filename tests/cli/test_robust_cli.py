@@ -26,7 +26,7 @@ def test_bad_arguments(tmp_path, capsys, args, message):
 
 
 def test_one_time_end_to_end(tmp_path, capsys):
-    code = cli.main(["robust", "--at", "50", "--no-mu", "--out", str(tmp_path)])
+    code = cli.main(["robust", "--at", "50", "--out", str(tmp_path)])
     out = capsys.readouterr().out
     assert code == 0, out
     assert "no unstable plant found" in out and "bending criteria at the worst case: met" in out

@@ -1,15 +1,15 @@
 """``vega robust``: robust analysis of the flown controller over the whole uncertainty set.
 
-Per frozen flight time (offline_synthesis.robust, offline_synthesis.mu_analysis): (a) the worst
-case over the set — the 642 corners of ``vega margins --dispersed`` and a differential-evolution
-search over all 13 parameters minimising the disk margin (an unstable plant ranks below every
-stable one); (b) a mixed-μ upper bound over an LFT of the set (Slycot ab13md) and the lower
-bound from (a) — the destabilising scale of the box along the worst-case ray; (c) disk margins
-at the actuator input, nominal and worst case. ``--time-domain`` adds the time-domain margins
+Per frozen flight time (offline_synthesis.robust): (a) the worst case over the set — the 642
+corners of ``vega margins --dispersed`` and a differential-evolution search over all 13
+parameters minimising the disk margin (an unstable plant ranks below every stable one); (b) a μ
+lower bound from (a) — the destabilising scale of the box along the worst-case ray (the μ upper
+bound over an LFT of the set is not built yet); (c) disk margins at the actuator input, nominal
+and worst case. ``--time-domain`` adds the time-domain margins
 of the nonlinear in-process loop per flight segment (offline_synthesis.time_margins).
 
 Output: a table per time on stdout; with ``--out DIR``: robust.csv, robust.json,
-robust_over_time.png, mu_max_q.png (and time_margins.csv/.png). Progress on stderr. Exit
+robust_over_time.png (and time_margins.csv/.png). Progress on stderr. Exit
 status 0 if no unstable plant was found and the worst case meets the bending criteria at every
 time, 1 if not, 2 on bad input.
 """
@@ -27,7 +27,7 @@ from vega_core.errors import BadArgument
 __all__ = ["register"]
 
 _DEFAULT_AT = "0:100:0.5"
-_CSV_SKIP = ("worst_deviations", "max_radius_deviations", "mu_curve", "mu_fit_error")
+_CSV_SKIP = ("worst_deviations", "max_radius_deviations")
 
 
 def _f(x, spec=".3f") -> str:
@@ -45,7 +45,7 @@ def _line(r) -> str:
             f"{_f(r['worst_gm_low_db'], '.1f'):>5} {_f(r['worst_gm_high_db'], '.1f'):>5} "
             f"{_f(r['worst_pm_deg'], '.1f'):>6} {bend:>4} {r['worst_source'][:6]:>6} | "
             f"{_f(r['max_radius'], '.5f')}{'!' if r['max_radius'] > 1 + 1e-6 else ' '}| "
-            f"{_f(r.get('mu_upper')):>6} {_f(r['mu_lower']):>6}")
+            f"{_f(r['mu_lower']):>6}")
 
 
 def _write_csv(path, rows) -> None:
@@ -107,17 +107,17 @@ def _run(args: argparse.Namespace) -> int:
         print(line, file=sys.stderr, flush=True)
 
     result = R.sweep(table_path, times, workers=0 if len(times) == 1 else workers,
-                     seed=args.seed, mu=not args.no_mu, progress=progress)
+                     seed=args.seed, progress=progress)
     rows = result["rows"]
     summary = R.summarise(rows)
     print(f"vega robust: table {table_path}; uncertainty set: thesis Table 2.3 + TVC ±10 % + "
           f"delay ±10 ms (13 parameters); controller on the nominal schedule")
     print("  disk margin α (balanced) with its gain [dB] and phase [deg] margins, nominal and "
           "at the worst case found (src: corner | search); worst-case rigid GM low/high [dB], "
-          "PM [deg], bending criteria; max |z| over the plants evaluated (! unstable); μ upper "
-          "bound (LFT) and lower bound (worst-case ray)")
+          "PM [deg], bending criteria; max |z| over the plants evaluated (! unstable); μ lower "
+          "bound (destabilising scale along the worst-case ray)")
     print("   t_s |  nom α  DGM   DPM |  wst α  DGM   DPM GMlow GMhi     PM bend    src |"
-          "  max |z|  |  μ_up  μ_low")
+          "  max |z|  |  μ_low")
     for r in rows:
         print(_line(r))
     print()
@@ -140,30 +140,21 @@ def _run(args: argparse.Namespace) -> int:
           + ("met at every time" if not bend else
              f"MISSED at {len(bend)} time(s): " + ", ".join(f"{t:g}" for t in bend[:10])
              + (" ..." if len(bend) > 10 else "")))
-    if "mu_upper" in s:
-        lo_txt = ("not established along the worst-case rays (no destabilising scale up to "
-                  f"{R.S_MAX:g}x)" if s["mu_lower"] is None else
-                  f"{s['mu_lower']['value']:.3f} at {s['mu_lower']['t_s']:g} s")
-        print(f"  mu: upper bound peak {s['mu_upper']['value']:.3f} at t = "
-              f"{s['mu_upper']['t_s']:g} s, w = {s['mu_upper']['w_radps']:.2f} rad/s; below 1 at "
-              f"{s['mu_below_1_times']}/{len(rows)} times; lower bound peak {lo_txt}")
+    lo_txt = ("not established along the worst-case rays (no destabilising scale up to "
+              f"{R.S_MAX:g}x)" if s["mu_lower"] is None else
+              f"{s['mu_lower']['value']:.3f} at {s['mu_lower']['t_s']:g} s")
+    print(f"  mu lower bound peak {lo_txt}; mu upper bound: not built (issue 14 item 3b)")
     print(f"  run time {result['run_time_s']:.1f} s ({result['workers']} worker process(es))")
 
     td = _time_domain(args, table_path, out_dir, progress) if args.time_domain else None
     if out_dir is not None:
-        from offline_synthesis.robust_plots import plot_mu_max_q, plot_robust_over_time
+        from offline_synthesis.robust_plots import plot_robust_over_time
 
         files = []
         path = os.path.join(out_dir, "robust.csv")
         _write_csv(path, rows)
         files.append(path)
         files.append(plot_robust_over_time(os.path.join(out_dir, "robust_over_time.png"), rows))
-        if not args.no_mu:
-            t_q = M.max_q_time(context)
-            row_q = min(rows, key=lambda r: abs(r["t_s"] - t_q))
-            w1, w2 = context.parameters(row_q["t_s"]).omega_radps
-            bands = [(0.8 * 0.8 * w1, 1.2 * 1.15 * w1), (0.8 * 0.75 * w2, 1.2 * 1.2 * w2)]
-            files.append(plot_mu_max_q(os.path.join(out_dir, "mu_max_q.png"), row_q, bands))
         path = os.path.join(out_dir, "robust.json")
         with open(path, "w", encoding="utf-8") as f:
             json.dump(M.json_ready({"summary": summary, "rows": rows, "time_domain": td,
@@ -180,13 +171,13 @@ def _run(args: argparse.Namespace) -> int:
 def register(subparsers) -> None:
     """Add the ``robust`` sub-command."""
     p = subparsers.add_parser(
-        "robust", help="robust analysis over the uncertainty set: worst-case search, mu bounds, "
-                       "disk margins (--time-domain: nonlinear-loop margins)",
+        "robust", help="robust analysis over the uncertainty set: worst-case search, mu lower "
+                       "bound, disk margins (--time-domain: nonlinear-loop margins)",
         description="Per frozen flight time, with the flown controller on the nominal schedule: "
                     "the worst case over the uncertainty set (642 corners + a differential-"
-                    "evolution search minimising the disk margin), a mixed-mu upper bound over "
-                    "an LFT of the set (Slycot ab13md) with the lower bound from the worst case, "
-                    "and disk margins. Exit status 0 if no unstable plant was found and the worst "
+                    "evolution search minimising the disk margin), a mu lower bound from the "
+                    "worst case (destabilising scale along its ray), and disk margins. Exit "
+                    "status 0 if no unstable plant was found and the worst "
                     "case meets the bending criteria at every time, 1 if not, 2 on bad input.")
     p.add_argument("--table", metavar="FILE",
                    help="controller table (default: the installed tvc_controller.npz)")
@@ -198,8 +189,6 @@ def register(subparsers) -> None:
                    help="worker processes (default: 2, or 1 on a 1-core machine)")
     p.add_argument("--seed", type=int, default=0, metavar="S",
                    help="seed of the worst-case search (default 0)")
-    p.add_argument("--no-mu", action="store_true",
-                   help="skip the mu upper bound (worst case and disk margins only)")
     p.add_argument("--time-domain", action="store_true",
                    help="also the time-domain margins of the nonlinear in-process loop per "
                         "flight segment (gain up/down and extra delay until unstable)")
