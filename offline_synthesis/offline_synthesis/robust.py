@@ -20,8 +20,10 @@ controller interpolated as the runtime does):
     gives μ ≥ 1/s* over the box (the box scaled by s* contains an unstable plant). Scales are
     capped where a parameter would leave its physical domain (relative deviations > −0.9, total
     delay ≥ 0) and at :data:`S_MAX`; if none is found the bound is reported as ``None`` (not
-    established along that ray). A μ *upper* bound (an LFT of the set and Slycot's ``ab13md``,
-    issue 14 item 3b) is not built yet: without it the set's stability rests on the search.
+    established along that ray). The μ *upper* bound over an LFT of the set (Slycot's
+    ``ab13md``, :mod:`.mu_analysis`) is computed beside it unless switched off: μ_upper < 1
+    with a stable centre proves every plant of the set stable (to the fit-error cover, a
+    sampled bound); the gap between the two bounds is reported.
 (c) **disk margins** at the actuator input, nominal and at the worst case: α, the disk gain
     margin DGM = (2 + α)/(2 − α) (a simultaneous gain change in [1/DGM, DGM] …) and disk
     phase margin DPM = 2·atan(α/2) (… or a phase change up to ±DPM, or any combination in the
@@ -261,10 +263,27 @@ _FINE_KEYS = ("gm_low_db", "gm_high_db", "pm_deg", "b1_peak_db", "b1_pm_deg", "b
               "disk_w_radps")
 
 
+def _mu_fields(table, context, t_s: float, uset) -> dict:
+    """The μ upper bound of :func:`.mu_analysis.mu_at_time` as flat row fields, with its curve
+    over frequency (``mu_curve``)."""
+    from offline_synthesis.mu_analysis import mu_at_time
+
+    r = mu_at_time(table, context, t_s, uset)
+    fit = r["fit_error"]
+    return {"mu_upper": r["mu_peak"], "mu_upper_w_radps": r["w_peak_radps"],
+            "mu_centre_stable": r["centre_stable"], "mu_fit_loop_rel": fit["loop_rel"],
+            "mu_fit_matrix_rel": fit["matrix_rel"], "mu_aliasing_rel": r["aliasing_centre_rel"],
+            "mu_blocks": r["n_blocks"], "mu_fallbacks": r["n_fallback"],
+            "mu_time_s": r["time_s"]["total"],
+            "mu_curve": {"w_radps": [float(x) for x in r["w_radps"]],
+                         "mu_upper": [float(x) for x in r["mu_upper"]]}}
+
+
 def analyse_time(table, context, t_s: float, seed: int = 0,
-                 search: Mapping = SEARCH) -> dict:
-    """(a), (b) and (c) at one frozen time: one flat row (plus ``worst_deviations`` and
-    ``max_radius_deviations``)."""
+                 search: Mapping = SEARCH, mu: bool = True) -> dict:
+    """(a), (b) and (c) at one frozen time, and with ``mu`` the μ upper bound
+    (:mod:`.mu_analysis`): one flat row (plus ``worst_deviations``,
+    ``max_radius_deviations`` and ``mu_curve``)."""
     start = _time.perf_counter()
     pt = robust_point(table, context, t_s)
     wc = worst_case(pt, seed=seed, search=search)
@@ -284,6 +303,8 @@ def analyse_time(table, context, t_s: float, seed: int = 0,
     row.update({f"worst_{k}": fine[k] for k in _FINE_KEYS})
     row["worst_deviations"] = worst["deviations"]
     row["max_radius_deviations"] = pt.max_radius_dev
+    if mu:
+        row.update(_mu_fields(table, context, t_s, pt.uset))
     row["run_time_s"] = _time.perf_counter() - start
     return row
 
@@ -300,14 +321,15 @@ def _init_worker(table_path: str) -> None:
 
 
 def _task(args) -> dict:
-    t_s, seed = args
-    return analyse_time(_WORKER["table"], _WORKER["context"], t_s, seed=seed)
+    t_s, seed, mu = args
+    return analyse_time(_WORKER["table"], _WORKER["context"], t_s, seed=seed, mu=mu)
 
 
 def sweep(table_path: str, times: Sequence[float], workers: int = 2, seed: int = 0,
-          progress: Callable[[str], None] | None = None) -> dict:
-    """:func:`analyse_time` at every time, in ``workers`` processes (``spawn``, one BLAS
-    thread each; 0: in this process). Progress: one line per finished time.
+          progress: Callable[[str], None] | None = None, mu: bool = True) -> dict:
+    """:func:`analyse_time` at every time (``mu``: with the μ upper bound), in ``workers``
+    processes (``spawn``, one BLAS thread each; 0: in this process). Progress: one line per
+    finished time.
 
     Returns
     -------
@@ -315,14 +337,15 @@ def sweep(table_path: str, times: Sequence[float], workers: int = 2, seed: int =
         ``rows`` (by time), ``run_time_s``, ``workers``.
     """
     start = _time.perf_counter()
-    tasks = [(float(t), int(seed)) for t in times]
+    tasks = [(float(t), int(seed), bool(mu)) for t in times]
     rows: list[dict] = []
 
     def report(row):
         if progress is not None:
+            mu_txt = f", mu <= {row['mu_upper']:.3f}" if "mu_upper" in row else ""
             progress(f"robust: {len(rows)}/{len(tasks)} t = {row['t_s']:g} s: worst disk "
-                     f"margin {row['worst_disk_alpha']:.3f} (max |z| {row['max_radius']:.5f}), "
-                     f"{_time.perf_counter() - start:.0f} s elapsed")
+                     f"margin {row['worst_disk_alpha']:.3f} (max |z| {row['max_radius']:.5f})"
+                     f"{mu_txt}, {_time.perf_counter() - start:.0f} s elapsed")
 
     if workers <= 0:
         _init_worker(table_path)
@@ -361,6 +384,23 @@ def summarise(rows: Sequence[Mapping]) -> dict:
     out["mu_lower"] = ({"value": max(r["mu_lower"] for r in lows),
                         "t_s": max(lows, key=lambda row: row["mu_lower"])["t_s"]}
                        if lows else None)
+    ups = [r for r in rows if r.get("mu_upper") is not None]
+    if ups:
+        top = max(ups, key=lambda row: row["mu_upper"])
+        gap = [r for r in ups if r["mu_lower"] is not None]
+        out["mu_upper"] = {"value": top["mu_upper"], "t_s": top["t_s"],
+                           "w_radps": top["mu_upper_w_radps"]}
+        out["mu_upper_below_1_times"] = sum(r["mu_upper"] < 1.0 and r["mu_centre_stable"]
+                                            for r in ups)
+        out["mu_fit_loop_rel"] = max(r["mu_fit_loop_rel"] for r in ups)
+        out["mu_gap"] = ({"lower": max(gap, key=lambda r: r["mu_lower"])["mu_lower"],
+                          "upper_at_same_time": max(gap, key=lambda r: r["mu_lower"])["mu_upper"],
+                          "t_s": max(gap, key=lambda r: r["mu_lower"])["t_s"]}
+                         if gap else None)
+        # robust stability proved by the bound (to its fit-error cover, a sampled bound)
+        out["mu_proves_stability"] = out["mu_upper_below_1_times"] == len(rows)
+    else:
+        out["mu_upper"] = None
     out["robust_stability_pass"] = not unstable
     out["worst_case_bending_pass"] = not bend
     return out

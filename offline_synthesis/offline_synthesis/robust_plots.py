@@ -2,8 +2,10 @@
 
 * ``robust_over_time.png`` — per frozen time: the disk margin α of the nominal plant and of
   the worst case found (with the disk phase margin it means), the rigid-body classical margins
-  of the worst case, and the μ lower bound (the destabilising scale along the worst-case ray)
-  against 1;
+  of the worst case, and the μ bounds (lower: the destabilising scale along the worst-case ray;
+  upper: the LFT + ab13md bound) against 1;
+* ``mu_max_q.png`` — the μ upper bound over frequency at the computed time nearest max-Q (and
+  at every other computed time, faint), the lower bound of that time as a level;
 * ``time_margins.png`` — the time-domain margins per flight segment (gain increase, gain
   reduction, extra delay) beside the frequency-domain margins of the nominal plant there.
 """
@@ -15,7 +17,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["plot_robust_over_time", "plot_time_margins"]
+__all__ = ["plot_robust_over_time", "plot_time_margins", "plot_mu_frequency"]
 
 
 def _plt():
@@ -58,8 +60,11 @@ def plot_robust_over_time(path, rows: Sequence[Mapping]) -> Path:
     ax = axes[2]
     ax.plot(t, _col(rows, "mu_lower"), "C0", marker=".", ls="none",
             label="μ lower bound (destabilising scale along the worst-case ray)")
+    if any(r.get("mu_upper") is not None for r in rows):
+        ax.plot(t, _col(rows, "mu_upper"), "C3", lw=1.2, marker=".", ms=3,
+                label="μ upper bound (LFT of the set, ab13md; fit error covered)")
     ax.axhline(1.0, color="k", ls="--", lw=1, label="μ = 1: the whole set")
-    ax.set_ylabel("μ lower bound [-]")
+    ax.set_ylabel("μ bounds [-]")
     ax.set_xlabel("flight time [s]")
     ax.legend(loc="upper right", fontsize=8)
     fig.suptitle("vega robust: worst case over the uncertainty set per frozen time")
@@ -91,6 +96,36 @@ def plot_time_margins(path, rows: Sequence[Mapping]) -> Path:
     ax.set_ylabel("delay margin [ms]")
     ax.legend(fontsize=7)
     fig.suptitle("time-domain margins (nonlinear loop) beside the frequency-domain ones")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_mu_frequency(path, rows: Sequence[Mapping], t_max_q_s: float) -> Path:
+    """Write ``mu_max_q.png``: the μ upper bound over frequency at the row nearest
+    ``t_max_q_s`` (bold) and at the other rows (faint), with that row's lower bound; return
+    its path."""
+    plt = _plt()
+    rows = [r for r in rows if "mu_curve" in r]
+    if not rows:
+        raise ValueError("plot_mu_frequency: no row carries a mu curve")
+    near = min(rows, key=lambda r: abs(r["t_s"] - t_max_q_s))
+    fig, ax = plt.subplots(figsize=(10, 5))
+    for r in rows:
+        if r is not near:
+            ax.semilogx(r["mu_curve"]["w_radps"], r["mu_curve"]["mu_upper"], color="0.8", lw=0.6)
+    ax.semilogx(near["mu_curve"]["w_radps"], near["mu_curve"]["mu_upper"], "C3", lw=1.5,
+                label=f"μ upper bound at t = {near['t_s']:g} s (max-Q {t_max_q_s:g} s)")
+    if near.get("mu_lower") is not None:
+        ax.axhline(near["mu_lower"], color="C0", lw=1.2,
+                   label=f"μ lower bound at t = {near['t_s']:g} s (worst-case ray)")
+    ax.axhline(1.0, color="k", ls="--", lw=1, label="μ = 1")
+    ax.set_xlabel("frequency [rad/s]")
+    ax.set_ylabel("μ [-]")
+    ax.set_title("μ bounds over frequency (grey: the upper bound at the other computed times)")
+    ax.legend(fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

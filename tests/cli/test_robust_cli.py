@@ -40,3 +40,21 @@ def test_one_time_end_to_end(tmp_path, capsys):
     header = (tmp_path / "robust.csv").read_text().splitlines()[0].split(",")
     assert "worst_disk_alpha" in header and "dev_bending_frequency_1" in header
     assert Path(tmp_path / "robust_over_time.png").stat().st_size > 10_000
+    # the μ upper bound: above the lower bound of the same time (μ_low ≤ μ ≤ μ_up), from a
+    # stable centre, its curve plotted; the summary states it
+    assert row["mu_centre_stable"] and row["mu_fallbacks"] == 0
+    assert row["mu_lower"] <= row["mu_upper"] < 10.0
+    assert max(row["mu_curve"]["mu_upper"]) == pytest.approx(row["mu_upper"])
+    assert data["summary"]["mu_upper"]["value"] == row["mu_upper"]
+    assert f"mu upper bound peak {row['mu_upper']:.3f} at 50 s" in out
+    assert "mu_curve" not in header
+    assert Path(tmp_path / "mu_max_q.png").stat().st_size > 10_000
+
+
+def test_no_mu_skips_the_upper_bound(tmp_path, capsys):
+    code = cli.main(["robust", "--at", "90", "--no-mu", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    row = json.loads((tmp_path / "robust.json").read_text())["rows"][0]
+    assert "mu_upper" not in row and "mu upper bound: not computed (--no-mu)" in out
+    assert not (tmp_path / "mu_max_q.png").exists()

@@ -3,13 +3,15 @@
 Per frozen flight time (offline_synthesis.robust): (a) the worst case over the set — the 642
 corners of ``vega margins --dispersed`` and a differential-evolution search over all 13
 parameters minimising the disk margin (an unstable plant ranks below every stable one); (b) a μ
-lower bound from (a) — the destabilising scale of the box along the worst-case ray (the μ upper
-bound over an LFT of the set is not built yet); (c) disk margins at the actuator input, nominal
-and worst case. ``--time-domain`` adds the time-domain margins
-of the nonlinear in-process loop per flight segment (offline_synthesis.time_margins).
+lower bound from (a) — the destabilising scale of the box along the worst-case ray — and a μ
+upper bound over an LFT of the set (offline_synthesis.mu_analysis, Slycot ab13md; ``--no-mu``
+skips it); (c) disk margins at the actuator input, nominal and worst case. ``--time-domain``
+adds the time-domain margins of the nonlinear in-process loop per flight segment
+(offline_synthesis.time_margins).
 
 Output: a table per time on stdout; with ``--out DIR``: robust.csv, robust.json,
-robust_over_time.png (and time_margins.csv/.png). Progress on stderr. Exit
+robust_over_time.png, mu_max_q.png (the μ bounds over frequency at max-Q; and
+time_margins.csv/.png). Progress on stderr. Exit
 status 0 if no unstable plant was found and the worst case meets the bending criteria at every
 time, 1 if not, 2 on bad input.
 """
@@ -27,7 +29,7 @@ from vega_core.errors import BadArgument
 __all__ = ["register"]
 
 _DEFAULT_AT = "0:100:0.5"
-_CSV_SKIP = ("worst_deviations", "max_radius_deviations")
+_CSV_SKIP = ("worst_deviations", "max_radius_deviations", "mu_curve")
 
 
 def _f(x, spec=".3f") -> str:
@@ -45,7 +47,7 @@ def _line(r) -> str:
             f"{_f(r['worst_gm_low_db'], '.1f'):>5} {_f(r['worst_gm_high_db'], '.1f'):>5} "
             f"{_f(r['worst_pm_deg'], '.1f'):>6} {bend:>4} {r['worst_source'][:6]:>6} | "
             f"{_f(r['max_radius'], '.5f')}{'!' if r['max_radius'] > 1 + 1e-6 else ' '}| "
-            f"{_f(r['mu_lower']):>6}")
+            f"{_f(r['mu_lower']):>6} {_f(r.get('mu_upper')):>6}")
 
 
 def _write_csv(path, rows) -> None:
@@ -107,7 +109,7 @@ def _run(args: argparse.Namespace) -> int:
         print(line, file=sys.stderr, flush=True)
 
     result = R.sweep(table_path, times, workers=0 if len(times) == 1 else workers,
-                     seed=args.seed, progress=progress)
+                     seed=args.seed, progress=progress, mu=not args.no_mu)
     rows = result["rows"]
     summary = R.summarise(rows)
     print(f"vega robust: table {table_path}; uncertainty set: thesis Table 2.3 + TVC ±10 % + "
@@ -115,9 +117,9 @@ def _run(args: argparse.Namespace) -> int:
     print("  disk margin α (balanced) with its gain [dB] and phase [deg] margins, nominal and "
           "at the worst case found (src: corner | search); worst-case rigid GM low/high [dB], "
           "PM [deg], bending criteria; max |z| over the plants evaluated (! unstable); μ lower "
-          "bound (destabilising scale along the worst-case ray)")
+          "bound (destabilising scale along the worst-case ray) and upper bound (LFT, ab13md)")
     print("   t_s |  nom α  DGM   DPM |  wst α  DGM   DPM GMlow GMhi     PM bend    src |"
-          "  max |z|  |  μ_low")
+          "  max |z|  |  μ_low   μ_up")
     for r in rows:
         print(_line(r))
     print()
@@ -143,7 +145,22 @@ def _run(args: argparse.Namespace) -> int:
     lo_txt = ("not established along the worst-case rays (no destabilising scale up to "
               f"{R.S_MAX:g}x)" if s["mu_lower"] is None else
               f"{s['mu_lower']['value']:.3f} at {s['mu_lower']['t_s']:g} s")
-    print(f"  mu lower bound peak {lo_txt}; mu upper bound: not built (issue 14 item 3b)")
+    print(f"  mu lower bound peak {lo_txt}")
+    if s.get("mu_upper") is None:
+        print("  mu upper bound: not computed (--no-mu)")
+    else:
+        up = s["mu_upper"]
+        proof = ("< 1 at every time with a stable centre: every plant of the set is stable "
+                 "(to the fit-error cover)" if s["mu_proves_stability"] else
+                 f">= 1 (or unstable centre) at {len(rows) - s['mu_upper_below_1_times']} "
+                 "time(s): the bound does not prove the set stable there")
+        print(f"  mu upper bound peak {up['value']:.3f} at {up['t_s']:g} s, "
+              f"{up['w_radps']:.2f} rad/s; {proof}; largest fit error "
+              f"{s['mu_fit_loop_rel']:.3f} of |1 + L| (covered)")
+        if s["mu_gap"] is not None:
+            g = s["mu_gap"]
+            print(f"  mu gap at {g['t_s']:g} s (largest lower bound): {g['lower']:.3f} <= mu "
+                  f"<= {g['upper_at_same_time']:.3f}")
     print(f"  run time {result['run_time_s']:.1f} s ({result['workers']} worker process(es))")
 
     td = _time_domain(args, table_path, out_dir, progress) if args.time_domain else None
@@ -155,6 +172,12 @@ def _run(args: argparse.Namespace) -> int:
         _write_csv(path, rows)
         files.append(path)
         files.append(plot_robust_over_time(os.path.join(out_dir, "robust_over_time.png"), rows))
+        if any("mu_curve" in r for r in rows):
+            from offline_synthesis.margins import max_q_time
+            from offline_synthesis.robust_plots import plot_mu_frequency
+
+            files.append(plot_mu_frequency(os.path.join(out_dir, "mu_max_q.png"), rows,
+                                           max_q_time(context)))
         path = os.path.join(out_dir, "robust.json")
         with open(path, "w", encoding="utf-8") as f:
             json.dump(M.json_ready({"summary": summary, "rows": rows, "time_domain": td,
@@ -172,11 +195,12 @@ def register(subparsers) -> None:
     """Add the ``robust`` sub-command."""
     p = subparsers.add_parser(
         "robust", help="robust analysis over the uncertainty set: worst-case search, mu lower "
-                       "bound, disk margins (--time-domain: nonlinear-loop margins)",
+                       "and upper bounds, disk margins (--time-domain: nonlinear-loop margins)",
         description="Per frozen flight time, with the flown controller on the nominal schedule: "
                     "the worst case over the uncertainty set (642 corners + a differential-"
                     "evolution search minimising the disk margin), a mu lower bound from the "
-                    "worst case (destabilising scale along its ray), and disk margins. Exit "
+                    "worst case (destabilising scale along its ray), a mu upper bound over an "
+                    "LFT of the set (Slycot ab13md), and disk margins. Exit "
                     "status 0 if no unstable plant was found and the worst "
                     "case meets the bending criteria at every time, 1 if not, 2 on bad input.")
     p.add_argument("--table", metavar="FILE",
@@ -189,6 +213,8 @@ def register(subparsers) -> None:
                    help="worker processes (default: 2, or 1 on a 1-core machine)")
     p.add_argument("--seed", type=int, default=0, metavar="S",
                    help="seed of the worst-case search (default 0)")
+    p.add_argument("--no-mu", action="store_true",
+                   help="skip the mu upper bound (LFT + ab13md, ≈ 7 s per time on one core)")
     p.add_argument("--time-domain", action="store_true",
                    help="also the time-domain margins of the nonlinear in-process loop per "
                         "flight segment (gain up/down and extra delay until unstable)")
