@@ -20,6 +20,9 @@ LPV = Path(__file__).resolve().parents[2] / "ros2_ws/src/vega_gnc/config/lpv_con
     (["--out", "{d}/t.npz", "--repair-from", str(LPV)], "--repair-from"),
     (["--out", "{d}/t.npz", "--repair-from", str(LPV), "--anchors-from", str(LPV)],
      "--anchors-from and --repair-from: give one of them"),
+    (["--out", "{d}/t.npz", "--tail-from", str(LPV)], "--tail-from"),
+    (["--out", "{d}/t.npz", "--repair-from", str(LPV), "--tail-from", str(LPV)],
+     "--repair-from and --tail-from: give one of them"),
 ])
 def test_bad_arguments(tmp_path, capsys, args, message):
     assert_refused(["design", *(a.replace("{d}", str(tmp_path)) for a in args)], capsys,
@@ -44,4 +47,26 @@ def test_anchors_without_parameters_are_refused(tmp_path, capsys):
     np.savez(table, **arrays)
     assert_refused(["design", "--out", str(tmp_path / "t.npz"), "--anchors-from", str(table)],
                    capsys, "its anchors have no 14 tuned parameters")
+    assert not (tmp_path / "t.npz").exists()
+
+
+def test_tail_without_its_hold_time_is_refused(tmp_path, capsys):
+    """A structured table with no grid point at the tail-off hold time: one line, exit 2."""
+    import json
+
+    import numpy as np
+
+    shipped = LPV.with_name("tvc_controller.npz")
+    with np.load(shipped) as f:
+        arrays = dict(f)
+    meta = json.loads(str(arrays["metadata"]))
+    keep = [i for i, t in enumerate(meta["grid_times_s"]) if t != 86.0]
+    meta["grid_times_s"] = [meta["grid_times_s"][i] for i in keep]
+    meta["parameters_per_grid_time"] = [meta["parameters_per_grid_time"][i] for i in keep]
+    arrays["metadata"] = np.array(json.dumps(meta))
+    table = tmp_path / "in" / "t.npz"
+    table.parent.mkdir()
+    np.savez(table, **arrays)
+    assert_refused(["design", "--out", str(tmp_path / "t.npz"), "--tail-from", str(table)],
+                   capsys, "no grid point at the tail-off hold time 86 s")
     assert not (tmp_path / "t.npz").exists()

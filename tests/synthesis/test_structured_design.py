@@ -173,6 +173,39 @@ def test_short_design_and_export(context, tmp_path):
 
 
 
+def test_tail_cost_is_the_worst_time_plus_a_tenth_of_the_mean(context):
+    from vega_model.uncertainty import UncertaintySet
+
+    uset = UncertaintySet.from_vehicle(context.vehicle)
+    sets = [S.design_set(context, t, uset) for t in (90.0, 100.0)]
+    x = np.array(S.START_X)
+    c = [S.evaluate(x, ds) for ds in sets]
+    assert S.tail_cost(x, sets) == pytest.approx(max(c) + 0.05 * (c[0] + c[1]), rel=1e-12)
+
+
+def test_retune_tail_holds_one_controller_and_keeps_the_rest(context):
+    from vega_gnc.controller_table import default_table_path, load_controller_table
+
+    meta = load_controller_table(default_table_path()).metadata
+    times, xs = meta["grid_times_s"], np.array(meta["parameters_per_grid_time"])
+    design = S.retune_tail(context, times, xs, meta["anchors_s"], {"seed": 1}, maxiter=1,
+                           popsize=2, polish_maxfev=10, times_s=(90.0, 100.0))
+    tail = design.grid_times_s >= S.TAIL_OFF_HOLD_S
+    np.testing.assert_array_equal(design.grid_times_s, times)
+    np.testing.assert_array_equal(design.x[~tail], xs[~tail])           # untouched before
+    assert np.all(design.x[tail] == design.x[tail][0])                  # one held controller
+    assert design.tuning["tail"]["times_s"] == [90.0, 100.0] and design.tuning["seed"] == 1
+    assert all(h.startswith("held from 86 s") for t, h in design.tuning["how"].items()
+               if float(t) >= S.TAIL_OFF_HOLD_S)
+    # the start (the 86 s parameters) is in the search's population: never worse than it
+    from vega_model.uncertainty import UncertaintySet
+
+    uset = UncertaintySet.from_vehicle(context.vehicle)
+    sets = [S.design_set(context, t, uset) for t in (90.0, 100.0)]
+    x86 = xs[list(times).index(S.TAIL_OFF_HOLD_S)]
+    assert S.tail_cost(design.x[tail][0], sets) <= S.tail_cost(x86, sets) + 1e-12
+
+
 def test_loader_rules_for_structured_tables(context, tmp_path):
     """NaN γ only in a structured table; a structured table with a γ, an LPV table without
     one and an unknown design are refused in one line."""

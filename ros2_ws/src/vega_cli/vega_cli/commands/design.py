@@ -10,8 +10,9 @@ ros2_ws/src/vega_gnc/config/tvc_controller.npz`` (not timed as one run: on 2 cor
 anchors took ≈ 25 min, the grid walk ≈ 13 min, rescue and added points ≈ 20 min;
 ``--anchors-from TABLE`` reuses an earlier table's anchors and re-tunes only the grid;
 ``--repair-from TABLE`` keeps every grid point of an earlier table that meets the current
-requirements and re-tunes the others) and verify it with ``vega margins --dispersed`` and
-``vega robust``. Exit 0, or 2 on bad input.
+requirements and re-tunes the others; ``--tail-from TABLE`` keeps every grid point before the
+tail-off and re-tunes only the one tail-off controller, jointly over 86–100 s) and verify it
+with ``vega margins --dispersed`` and ``vega robust``. Exit 0, or 2 on bad input.
 """
 
 from __future__ import annotations
@@ -31,7 +32,9 @@ def _run(args: argparse.Namespace) -> int:
     from vega_model.parameters import default_context
 
     from offline_synthesis.margins import json_ready
-    from offline_synthesis.structured import PARAMETERS, design_flight, write_structured_table
+    from offline_synthesis.structured import (
+        PARAMETERS, TAIL_OFF_HOLD_S, design_flight, retune_tail, write_structured_table,
+    )
 
     out = npz_out(args.out)
     if not 1 <= args.maxiter <= 1000:
@@ -39,10 +42,13 @@ def _run(args: argparse.Namespace) -> int:
     if not 0 <= args.workers <= 64:
         raise BadArgument(f"--workers {args.workers}: must be within 0..64")
     anchor_x = None
-    if args.anchors_from and args.repair_from:
-        raise BadArgument("--anchors-from and --repair-from: give one of them")
-    source_path = args.anchors_from or args.repair_from
-    option = "--anchors-from" if args.anchors_from else "--repair-from"
+    given = [o for o, v in (("--anchors-from", args.anchors_from),
+                            ("--repair-from", args.repair_from),
+                            ("--tail-from", args.tail_from)) if v]
+    if len(given) > 1:
+        raise BadArgument(f"{' and '.join(given)}: give one of them")
+    source_path = args.anchors_from or args.repair_from or args.tail_from
+    option = given[0] if given else None
     if source_path:
         from vega_gnc.controller_table import load_controller_table
 
@@ -53,19 +59,30 @@ def _run(args: argparse.Namespace) -> int:
             raise BadArgument(f"{option} {source_path}: not a structured design "
                               "table (no tuned parameters in its metadata)")
         by_time = dict(zip(meta["grid_times_s"], meta["parameters_per_grid_time"]))
-        used = meta["grid_times_s"] if args.repair_from else meta["anchors_s"]
+        grid = args.repair_from or args.tail_from
+        used = meta["grid_times_s"] if grid else meta["anchors_s"]
         if any(t not in by_time or len(by_time[t]) != len(PARAMETERS) for t in used):
             raise BadArgument(f"{option} {source_path}: its "
-                              f"{'grid points' if args.repair_from else 'anchors'} have no "
+                              f"{'grid points' if grid else 'anchors'} have no "
                               f"{len(PARAMETERS)} tuned parameters in its metadata")
+        if args.tail_from and TAIL_OFF_HOLD_S not in by_time:
+            raise BadArgument(f"--tail-from {source_path}: no grid point at the tail-off "
+                              f"hold time {TAIL_OFF_HOLD_S:g} s")
         anchor_x = {float(t): by_time[t] for t in used}
     start = time.perf_counter()
     context = default_context()
     kwargs = {"anchors_s": sorted(anchor_x)} if args.repair_from else {}
-    design = design_flight(context, seed=args.seed, maxiter=args.maxiter,
-                           workers=args.workers, anchor_x=anchor_x,
-                           repair=bool(args.repair_from), **kwargs,
-                           progress=lambda line: print(line, flush=True))
+    if args.tail_from:
+        tuning = {k: v for k, v in meta.get("solver", {}).items()
+                  if k not in ("method", "scipy")}
+        design = retune_tail(context, sorted(anchor_x), [anchor_x[t] for t in sorted(anchor_x)],
+                             meta["anchors_s"], tuning, seed=args.seed + 4000,
+                             progress=lambda line: print(line, flush=True))
+    else:
+        design = design_flight(context, seed=args.seed, maxiter=args.maxiter,
+                               workers=args.workers, anchor_x=anchor_x,
+                               repair=bool(args.repair_from), **kwargs,
+                               progress=lambda line: print(line, flush=True))
     table = write_structured_table(out, design, context)
     report = {"table": str(out), "run_time_s": time.perf_counter() - start,
               "grid_times_s": design.grid_times_s, "grid_v_mps": design.grid_v_mps,
@@ -100,6 +117,10 @@ def register(subparsers) -> None:
     p.add_argument("--anchors-from", metavar="TABLE",
                    help="reuse the anchor times' parameters of an earlier structured table "
                         "(skips their from-scratch search and re-tunes only the grid)")
+    p.add_argument("--tail-from", metavar="TABLE",
+                   help="keep every grid point of an earlier structured table before the "
+                        "tail-off hold time (86 s) and re-tune only the one tail-off "
+                        "controller, jointly over 86-100 s (≈ 15 min on one core)")
     p.add_argument("--workers", type=int, default=2,
                    help="processes for the anchors (default 2; 0 = in this process)")
     p.set_defaults(func=_run)
