@@ -173,6 +173,23 @@ def test_short_design_and_export(context, tmp_path):
 
 
 
+def test_search_returns_the_point_it_evaluated_inside_the_box():
+    """The polish must not leave the box: a cost whose unconstrained minimum lies outside it
+    (u0 = 1.5) and whose clipped unconstrained minimum is poor (2.75) against the box optimum
+    (u0 = 1, u1 = 0.4: 0.25)."""
+    span = S.UPPER - S.LOWER
+
+    def fun(x):
+        u = (x - S.LOWER) / span
+        return (u[0] - 1.5) ** 2 + 10.0 * (u[0] - u[1] - 0.6) ** 2 + float(np.sum(u[2:] ** 2))
+
+    x0 = S.LOWER.copy()
+    x0[0], x0[1] = S.UPPER[0], S.LOWER[1] + 0.4 * span[1]
+    x = S._search(fun, (), x0, seed=0, maxiter=3, popsize=2, polish_maxfev=3000)
+    assert np.all(x >= S.LOWER) and np.all(x <= S.UPPER)
+    assert fun(x) <= fun(x0) + 1e-9 and fun(x) == pytest.approx(0.25, abs=1e-3)
+
+
 def test_tail_cost_is_the_worst_time_plus_a_tenth_of_the_mean(context):
     from vega_model.uncertainty import UncertaintySet
 
