@@ -24,7 +24,7 @@ __all__ = [
     "main",
 ]
 
-TYPE_NAMES = ("InsMeasurement", "TvcCommand", "ActuatorState", "VehicleState")
+TYPE_NAMES = ("InsMeasurement", "TvcCommand", "ActuatorState", "VehicleState", "StepDiagnostics")
 """The vega_msgs message types, as in ``vega_msgs/msg/<name>``."""
 
 QOS_DEPTH = 1
@@ -51,6 +51,10 @@ SAMPLES = {
         "deflection_cmd_rad": -0.10471975511965977,
         "scheduling_velocity_mps": 350.25,
         "status": 4,
+    },
+    "StepDiagnostics": {
+        "header": {"stamp": {"sec": 42, "nanosec": 12_000_000}, "frame_id": "tvc_controller"},
+        "seq": 2_500,
         "compute_time_s": 1.25e-4,
     },
     "ActuatorState": {

@@ -15,6 +15,7 @@ from vega_bus import qos, topics
 from vega_bags import bagio
 
 TOPIC_OF = {"InsMeasurement": topics.INS.name, "TvcCommand": topics.TVC_CMD.name,
+            "StepDiagnostics": topics.DIAGNOSTICS.name,
             "ActuatorState": topics.ACTUATOR.name, "VehicleState": topics.TRUTH.name}
 META = {bagio.META_SCENARIO: "thesis", bagio.META_SCENARIO_YAML: "name: thesis\nseed: 7\n",
         bagio.META_SEED: 7, bagio.META_CONTROLLER_TABLE: "/x/table.npz",
@@ -203,8 +204,11 @@ def test_iter_raw_messages_gives_the_recorded_bytes(sample_bag):
     topic, t_ns, data = got[0]
     assert topic == topics.TVC_CMD.name and t_ns == 42_012_000_000
     decoded = bagio.vega_typestore().deserialize_cdr(data, topics.TVC_CMD.type_name)
-    assert math.isclose(decoded.compute_time_s, 1.25e-4)
+    assert decoded.seq == 2_500 and decoded.status == 4
     assert np.isfinite(decoded.deflection_cmd_rad)
+    ((_, _, data),) = bagio.iter_raw_messages(sample_bag, {topics.DIAGNOSTICS.name})
+    decoded = bagio.vega_typestore().deserialize_cdr(data, topics.DIAGNOSTICS.type_name)
+    assert math.isclose(decoded.compute_time_s, 1.25e-4) and decoded.seq == 2_500
 
 
 def test_fast_reader_equals_rosbags_deserialiser(tmp_path):

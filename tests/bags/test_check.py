@@ -228,7 +228,7 @@ def test_compute_time_over_budget(run, tmp_path):
     """More than 1 % of the steps over the 12 ms budget fails the run; an isolated overrun (a
     descheduled step on a shared machine) is reported, not failed."""
     def isolated(messages):
-        messages[messages_on(messages, topics.TVC_CMD.name)[7]][2].compute_time_s = 0.0125
+        messages[messages_on(messages, topics.DIAGNOSTICS.name)[7]][2].compute_time_s = 0.0125
 
     check = _check(tmp_path, run, isolated)
     h = next(h for h in check.health if h.key == "compute_time")
@@ -237,7 +237,7 @@ def test_compute_time_over_budget(run, tmp_path):
 
     def systematic(messages):
         nonlocal n_cmd
-        cmds = messages_on(messages, topics.TVC_CMD.name)
+        cmds = messages_on(messages, topics.DIAGNOSTICS.name)
         n_cmd = len(cmds)
         for i in cmds[::50] + cmds[1::50]:  # 4 % of the steps
             messages[i][2].compute_time_s = 0.0125

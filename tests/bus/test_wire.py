@@ -134,12 +134,25 @@ def test_to_msg_fills_stamps_and_leaves_the_publishers_own_fields():
 
     msg = TvcCommand()
     msg.header.frame_id = "base_link"
-    msg.compute_time_s = 1.5e-5
     rec = CommandOut(10_012, 10_000, 7, -0.01, 800.0, 2)
     wire.to_msg(rec, msg)
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (10, 12 * NS_PER_MS)
     assert (msg.sample_stamp.sec, msg.sample_stamp.nanosec) == (10, 0)
-    assert (msg.header.frame_id, msg.compute_time_s) == ("base_link", 1.5e-5)
+    assert msg.header.frame_id == "base_link"
+
+
+def test_no_wall_clock_field_on_a_data_topic():
+    """Issue 11 item 7: every field of a data message comes from the flight (the record or
+    the publisher's constant frame_id); the controller's step time is on /vega/diagnostics."""
+    from vega_msgs.msg import StepDiagnostics, TvcCommand
+
+    assert "compute_time_s" not in TvcCommand.get_fields_and_field_types()
+    assert all(not w.measured for w in wire.WIRE.values())
+    assert topics.DIAGNOSTICS not in topics.DATA_TOPICS
+    assert topics.DIAGNOSTICS in topics.ALL_TOPICS          # recorded
+    assert topics.message_class(topics.DIAGNOSTICS.type_name) is StepDiagnostics
+    assert list(StepDiagnostics.get_fields_and_field_types()) == ["header", "seq",
+                                                                   "compute_time_s"]
 
 
 def test_a_stamp_off_the_millisecond_grid():

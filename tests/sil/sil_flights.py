@@ -122,23 +122,19 @@ def normalised(topic, data, drop_frame_id=False):
     Deserialised and serialised again by the rosbags typestore of the bags
     (:func:`vega_bags.bagio.vega_typestore`), which writes zeros into the alignment padding:
     rclpy's serialiser leaves whatever was in memory there, so two serialisations of one
-    message may differ in those bytes while every data byte is the same. The controller's
-    wall-clock ``compute_time_s`` (the one field that may differ between runs) is set to 0
-    and, if asked, ``header.frame_id`` cleared.
+    message may differ in those bytes while every data byte is the same. If asked,
+    ``header.frame_id`` is cleared.
     """
     store = bagio.vega_typestore()
     msg = store.deserialize_cdr(bytes(data), _TYPES[topic])
-    if topic == topics.TVC_CMD.name:
-        msg = dataclasses.replace(msg, compute_time_s=0.0)
     if drop_frame_id and hasattr(msg, "header"):
         msg = dataclasses.replace(msg, header=dataclasses.replace(msg.header, frame_id=""))
     return bytes(store.serialize_cdr(msg, _TYPES[topic]))
 
 
 def by_topic(messages):
-    """{topic: [(log time, payload), ...] in order}. The order of messages of different
-    topics with the same log time is the order they reached the recorder, which is not part
-    of the run; within a topic the order is."""
+    """{topic: [(log time, payload), ...] in order}. (The order across topics is compared
+    separately: tests/sil/test_sil_equivalence.py reads the file order.)"""
     out = {}
     for topic, log_time, data in messages:
         out.setdefault(topic, []).append((log_time, data))

@@ -101,7 +101,8 @@ def test_schedule_counts_and_actuator_needs():
     assert info.n_frames == 100
     assert list(info.command_samples())[:3] == [10_000, 10_020, 10_040]
     assert info.expected_counts() == {"/vega/truth": 101, "/clock": 11, "/vega/ins": 100,
-                                      "/vega/tvc_cmd": 50, "/vega/actuator": 100}
+                                      "/vega/tvc_cmd": 50, "/vega/actuator": 100,
+                                      "/vega/diagnostics": 50}
     assert info.clock_frames() == list(range(0, 101, 10))
     assert RunInfo("x", 1, 0, 1_050, LoopTiming()).clock_frames()[-3:] == [90, 100, 105]
     # command of sample s applies at s + 39 ms; frame k integrates steps t_k … t_k + 9 ms
@@ -228,7 +229,7 @@ class _Driver:
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
         from std_msgs.msg import String
-        from vega_msgs.msg import InsMeasurement, TvcCommand
+        from vega_msgs.msg import InsMeasurement, StepDiagnostics, TvcCommand
 
         self.context = rclpy.Context()
         rclpy.init(context=self.context,
@@ -244,6 +245,9 @@ class _Driver:
         self.ready = set()
         self.node.create_subscription(TvcCommand, topics.TVC_CMD.name, self.commands.append,
                                       qos.data_qos())
+        self.diagnostics = []
+        self.node.create_subscription(StepDiagnostics, topics.DIAGNOSTICS.name,
+                                      self.diagnostics.append, qos.data_qos())
         self.node.create_subscription(String, topics.READY.name,
                                       lambda m: self.ready.add(m.data), qos.control_qos())
         self._msg = InsMeasurement
@@ -312,7 +316,7 @@ def test_controller_flags_bad_measurements_and_never_crashes(nodes, tmp_path, pd
         ]
         for seq, sample, stamp, kw in plan:
             driver.send(seq, sample, stamp, **{"v": v_in, **kw})
-        driver.spin_until(lambda: len(driver.commands) == 7)
+        driver.spin_until(lambda: len(driver.commands) == 7 and len(driver.diagnostics) == 7)
         code, _out, err = _finish(proc)
     finally:
         driver.close()
@@ -328,7 +332,12 @@ def test_controller_flags_bad_measurements_and_never_crashes(nodes, tmp_path, pd
     # stamps: arrival + 12 ms; sample stamp carried over
     assert (c[0].header.stamp.sec, c[0].header.stamp.nanosec) == ms_to_stamp(10_024)
     assert (c[4].sample_stamp.sec, c[4].sample_stamp.nanosec) == ms_to_stamp(10_080)
-    assert all(m.compute_time_s > 0.0 for m in c)
+    # the wall-clock step time: on /vega/diagnostics, one per command, its stamp and seq
+    d = driver.diagnostics
+    assert [(m.seq, m.header.stamp.sec, m.header.stamp.nanosec) for m in d] == \
+        [(m.seq, m.header.stamp.sec, m.header.stamp.nanosec) for m in c]
+    assert all(0.0 < m.compute_time_s < 1.0 for m in d)
+    assert {m.header.frame_id for m in d} == {"tvc_controller"}
 
 
 @pytest.mark.ros

@@ -23,9 +23,10 @@ coverage        truth, INS, actuator and commands hold the messages of the whole
                 [t_start, t_end], first and last stamps as :mod:`vega_bus.schedule` says;
                 /clock ticks at exactly the times of ``RunInfo.clock_frames`` (every 100 ms
                 and t_end)
-compute time    ``TvcCommand.compute_time_s`` ≤ the computing latency (12 ms budget) for at
-                least 99 % of the commands (:data:`COMPUTE_OVERRUN_FRACTION`); every
-                overrun is counted and reported
+compute time    ``StepDiagnostics.compute_time_s`` on ``/vega/diagnostics`` (one per command,
+                its stamp) ≤ the computing latency (12 ms budget) for at least 99 % of the
+                commands (:data:`COMPUTE_OVERRUN_FRACTION`); every overrun is counted and
+                reported
 ==============  ===========================================================================
 
 The run: truth (Qα, Mach, z, ż) from ``/vega/truth``; the nozzle angle β from the
@@ -65,7 +66,7 @@ from vega_sim.requirements import RequirementReport, RequirementSpec
 __all__ = ["HealthResult", "RunContext", "BagCheck", "run_context", "bag_result",
            "check_run_bag", "check_bag"]
 
-_DATA = (topics.TRUTH, topics.INS, topics.TVC_CMD, topics.ACTUATOR)
+_DATA = (topics.TRUTH, topics.INS, topics.TVC_CMD, topics.ACTUATOR, topics.DIAGNOSTICS)
 
 
 @dataclass(frozen=True)
@@ -471,6 +472,7 @@ def _check_coverage(bag: bagio.RunBag, ctx: RunContext) -> HealthResult:
         topics.TVC_CMD.name: (samples[0] + cmd_lag, samples[-1] + cmd_lag) if len(samples)
         else None,
     }
+    expect[topics.DIAGNOSTICS.name] = expect[topics.TVC_CMD.name]   # one per command
     counts = info.expected_counts()
     problems = []
     for name, span in expect.items():
@@ -510,8 +512,9 @@ does (p99 over budget), and fails the run; isolated overruns are listed in the d
 def _check_compute_time(ct: np.ndarray, cmd_t_ms: np.ndarray, timing) -> HealthResult:
     budget = timing.computing_latency_ms / 1000.0
     if ct.size == 0:
-        return HealthResult("compute_time", "controller compute time", "no commands",
-                            f"≤ {budget * 1e3:g} ms", False, "no TvcCommand messages")
+        return HealthResult("compute_time", "controller compute time", "no diagnostics",
+                            f"≤ {budget * 1e3:g} ms", False,
+                            f"no {topics.DIAGNOSTICS.name} messages")
     finite = ct[np.isfinite(ct)]
     peak = float(np.max(ct)) if finite.size == ct.size else math.inf
     p99 = float(np.percentile(finite, 99)) if finite.size == ct.size else math.inf
@@ -540,11 +543,14 @@ def check_run_bag(bag: bagio.RunBag, spec: RequirementSpec | None = None) -> Bag
     ctx = run_context(bag)
     result = bag_result(bag, ctx)
     report = result.metrics(spec)
-    cmd = bag.topics.get(topics.TVC_CMD.name)
-    compute = cmd["compute_time_s"] if cmd is not None and len(cmd) else np.zeros(0)
+    diag = bag.topics.get(topics.DIAGNOSTICS.name)
+    if diag is not None and len(diag):
+        compute, diag_ms = diag["compute_time_s"], diag["stamp_ns"] // NS_PER_MS
+    else:
+        compute, diag_ms = np.zeros(0), np.zeros(0, dtype=np.int64)
     health = (_check_metadata(ctx), _check_finite(bag), _check_sequence(bag),
               _check_lockstep(bag, ctx.timing), _check_coverage(bag, ctx),
-              _check_compute_time(compute, result.cmd_stamp_ms, ctx.timing))
+              _check_compute_time(compute, diag_ms, ctx.timing))
     return BagCheck(bag.path, dict(bag.metadata), report, health, ctx, result, compute)
 
 

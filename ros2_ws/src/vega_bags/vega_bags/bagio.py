@@ -4,9 +4,12 @@ A *run bag* is one rosbag2 directory (``metadata.yaml`` + one MCAP file) written
 ``rosbags`` the way Jazzy writes its own bags (format version 9, MCAP storage), holding:
 
 * the topics of :mod:`vega_bus.topics` (``/vega/truth``, ``/vega/ins``, ``/vega/tvc_cmd``,
-  ``/vega/actuator``, ``/clock``) with the QoS the publishers offer;
+  ``/vega/actuator``, ``/clock``, ``/vega/diagnostics``) with the QoS the publishers offer;
 * every message as the raw CDR bytes the recorder received, with log time = the message's
-  sim-time stamp in nanoseconds (``header.stamp``; ``clock`` for ``/clock``);
+  sim-time stamp in nanoseconds (``header.stamp``; ``clock`` for ``/clock``), in the file in
+  (log time, :data:`vega_bus.topics.RECORD_ORDER`, seq) order (:class:`RunBagWriter` callers
+  write in that order: the recorder through its :class:`vega_bags.recorder.Reorder` buffer, the
+  in-process bags sorted): two runs of one scenario and seed give the same file order;
 * custom metadata (rosbag2 ``custom_data``, string → string) with at least the keys of
   :data:`REQUIRED_METADATA`: scenario name and YAML text, seed, controller-table path and
   SHA-256, git revision (:func:`run_metadata` builds them).
@@ -75,7 +78,8 @@ REQUIRED_METADATA = (META_SCENARIO, META_SCENARIO_YAML, META_SEED, META_CONTROLL
                      META_CONTROLLER_TABLE_SHA256, META_GIT_REVISION)
 """custom_data keys every run bag carries (the writer refuses to open without them)."""
 
-_VEGA_TYPES = tuple(sorted({t.type_name for t in topics.DATA_TOPICS}))
+_VEGA_TYPES = tuple(sorted({t.type_name for t in topics.ALL_TOPICS
+                            if t.type_name.startswith("vega_msgs/")}))
 
 ROS_DISTRO = "jazzy"
 """``ros_distro`` of the bags' metadata.yaml."""

@@ -6,7 +6,10 @@ the expected message counts), ``participants``, ``barrier_timeout_s``, ``stall_t
 
 * subscribes to every topic of :data:`vega_bus.topics.ALL_TOPICS` with ``raw=True`` and writes
   the bytes unchanged (:class:`vega_bags.bagio.RunBagWriter`): no re-serialisation, so two runs
-  of one scenario and seed give byte-identical payloads (except ``compute_time_s``);
+  of one scenario and seed give byte-identical payloads on every data topic (only
+  ``/vega/diagnostics``, the controller's wall-clock step time, differs);
+* writes them in (log time, :data:`vega_bus.topics.RECORD_ORDER`, seq) order, whatever order
+  they arrived in (:class:`Reorder`): the file order of two such runs is the same too;
 * log time = the message's sim-time stamp (``header.stamp``; ``clock`` of /clock), read
   from the CDR bytes at the offsets of the computed layout (:class:`RawFields`);
 * checks ``seq`` of every data topic (a gap → exit 1, bag closed and readable);
@@ -23,6 +26,8 @@ The bag is opened before the start barrier (a path that exists → exit 2 before
 
 from __future__ import annotations
 
+import heapq
+import math
 import struct
 import sys
 import time
@@ -35,7 +40,7 @@ from vega_bus.schedule import RECORDER_REPORT_FRAMES
 from vega_bus.shell import EXIT_BAD_INPUT, EXIT_RUN_FAILURE, NodeExit, Shell, run_node
 from vega_bus.timing import NS_PER_S
 
-__all__ = ["RawFields", "main"]
+__all__ = ["RawFields", "Reorder", "main"]
 
 # The recorder is off the lockstep's critical path (the plant may run
 # RECORDER_WINDOW_FRAMES ahead of it): it sleeps this long after each wake-up, so that one
@@ -108,6 +113,60 @@ class RawFields:
         return sec * NS_PER_S + nsec, seq
 
 
+class Reorder:
+    """Holds received messages until nothing that sorts before them can still arrive, then
+    hands them to ``write`` in (log time, :data:`vega_bus.topics.RECORD_ORDER` rank, arrival)
+    order: equal-time messages of different topics get one order whatever order the
+    executor delivered them in, and log times never go backwards in the file.
+
+    Each topic's stamps strictly increase (the lockstep; :mod:`vega_bags.bagcheck` checks it),
+    so the next message of a topic that is still to send has a log time above the last one it
+    sent: every held message with a log time ≤ the smallest such last log time can go. A
+    topic that has sent all its messages (``expected``) holds nothing back; one that has sent
+    none yet holds everything. The buffer so holds at most about one period of the slowest
+    topic still running (/clock: 100 ms of traffic). :meth:`drain` writes the rest (the run's
+    end, or a stop).
+
+    Parameters
+    ----------
+    write
+        ``write(topic, log_time_ns, data)``, e.g. :meth:`vega_bags.bagio.RunBagWriter.write`.
+    expected
+        Topic name → number of messages of the complete run
+        (:meth:`vega_bus.schedule.RunInfo.expected_counts`).
+    """
+
+    def __init__(self, write, expected: dict[str, int]):
+        self._write = write
+        self._heap: list = []
+        self._n = 0
+        self._rank = topics.RECORD_ORDER
+        self._left = dict(expected)
+        self._last: dict[str, float] = {name: -math.inf for name in expected}
+
+    def __len__(self) -> int:
+        return len(self._heap)
+
+    def add(self, topic: str, log_time_ns: int, data) -> None:
+        """Take one message; write every held message that can no longer be preceded."""
+        heapq.heappush(self._heap, (log_time_ns, self._rank[topic], self._n, topic, data))
+        self._n += 1
+        self._last[topic] = log_time_ns
+        self._left[topic] -= 1
+        horizon = min((self._last[name] for name, left in self._left.items() if left > 0),
+                      default=math.inf)
+        heap = self._heap
+        while heap and heap[0][0] <= horizon:
+            t, _, _, name, payload = heapq.heappop(heap)
+            self._write(name, t, payload)
+
+    def drain(self) -> None:
+        """Write every held message, in order."""
+        while self._heap:
+            t, _, _, name, payload = heapq.heappop(self._heap)
+            self._write(name, t, payload)
+
+
 def _recorder(shell: Shell) -> None:
     from pathlib import Path
 
@@ -146,10 +205,11 @@ def _recorder(shell: Shell) -> None:
     expected = info.expected_counts()
     counts = {name: 0 for name in expected}
     progress = node.create_publisher(UInt32, topics.RECORDED.name, qos.data_qos())
+    reorder = Reorder(writer.write, expected)
     try:
         for topic in topics.ALL_TOPICS:
             profile = qos.clock_qos() if topic is topics.CLOCK else qos.data_qos()
-            callback = _writer_callback(writer, topic.name, topic.type_name, counts,
+            callback = _writer_callback(reorder, topic.name, topic.type_name, counts,
                                         progress if topic is topics.TRUTH else None)
             node.create_subscription(topics.message_class(topic.type_name), topic.name,
                                      shell.guard(callback), profile, raw=True)
@@ -161,7 +221,10 @@ def _recorder(shell: Shell) -> None:
                              if counts[k] < n),
                          progress=lambda: sum(counts.values()))
     finally:
-        writer.close()
+        try:
+            reorder.drain()
+        finally:
+            writer.close()
     # the final report ends the run for everyone; wait until they have left (they exit on it)
     final = UInt32(data=counts[topics.TRUTH.name])
     progress.publish(final)
@@ -170,8 +233,9 @@ def _recorder(shell: Shell) -> None:
         shell.spin_once(0.05)
 
 
-def _writer_callback(writer, name: str, type_name: str, counts: dict, progress=None):
-    """Callback writing the raw messages of topic ``name`` (type ``type_name``); with
+def _writer_callback(reorder: Reorder, name: str, type_name: str, counts: dict, progress=None):
+    """Callback handing the raw messages of topic ``name`` (type ``type_name``) to the
+    :class:`Reorder` buffer in front of the bag; with
     ``progress`` (the truth topic), it reports the count on /vega/recorded every
     RECORDER_REPORT_FRAMES messages."""
     from std_msgs.msg import UInt32
@@ -184,7 +248,7 @@ def _writer_callback(writer, name: str, type_name: str, counts: dict, progress=N
         if seq is not None and seq != counts[name]:
             raise NodeExit(EXIT_RUN_FAILURE, f"sequence gap on {name}: expected seq "
                                              f"{counts[name]}, got {seq}")
-        writer.write(name, stamp, data)
+        reorder.add(name, stamp, data)
         counts[name] += 1
         if progress is not None and counts[name] % RECORDER_REPORT_FRAMES == 0:
             report.data = counts[name]

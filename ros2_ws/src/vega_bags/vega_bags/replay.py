@@ -13,7 +13,8 @@
   ``/vega/run`` and the recorded INS measurements in order, flow-controlled: after a
   measurement whose sample falls on the controller period, the checker waits for the
   command before it sends the next one. Its commands are compared with the recorded ones,
-  every field except ``compute_time_s`` (the wall-clock step time), floats bit for bit.
+  every field, floats bit for bit (the wall-clock step time is on ``/vega/diagnostics``,
+  not compared).
 
 The checker takes the recorder's place in the start barrier (node name ``recorder``,
 participants ``tvc_controller`` and ``recorder``): the controller announces itself only when
@@ -211,7 +212,7 @@ class ControllerCheck:
         """One or two lines for the console."""
         head = (f"controller replay with {self.table}: {self.replayed} commands replayed, "
                 f"{self.recorded} recorded, {self.compared} compared")
-        verdict = ("IDENTICAL (every field but compute_time_s)" if self.identical
+        verdict = ("IDENTICAL (every field)" if self.identical
                    else f"DIFFERENT: {self.difference}")
         return "\n".join([*(f"note: {n}" for n in self.notes), head, f"verdict: {verdict}"])
 
@@ -223,11 +224,10 @@ def _same(a, b) -> bool:
 
 
 def _diff(a, b, prefix: str = "") -> str | None:
-    """First field (dotted path) where rosbags messages ``a`` and ``b`` differ, with values;
-    ``compute_time_s`` is ignored."""
+    """First field (dotted path) where rosbags messages ``a`` and ``b`` differ, with values."""
     for f in fields(a):
         name = f.name
-        if name == "__msgtype__" or name.isupper() or name == "compute_time_s":
+        if name == "__msgtype__" or name.isupper():
             continue
         x, y = getattr(a, name), getattr(b, name)
         if is_dataclass(x):
@@ -458,11 +458,15 @@ def check_controller(path: str | Path, table: str | Path | None = None, *,
         cmd_sub = node.create_subscription(topics.message_class(topics.TVC_CMD.type_name),
                                            topics.TVC_CMD.name, received.append,
                                            qos.data_qos(), raw=True)
+        # the controller's barrier waits for the recorder's seat on its diagnostics too
+        diag_sub = node.create_subscription(
+            topics.message_class(topics.DIAGNOSTICS.type_name), topics.DIAGNOSTICS.name,
+            lambda _: None, qos.data_qos(), raw=True)
         run_pub.publish(String(data=info.to_json()))
         # matched both ways before the run starts: the controller hears the measurements,
         # and this node hears the controller's commands from the first one
         barrier = StartBarrier(node, participants, publishers=[ins_pub],
-                               subscriptions=[cmd_sub],
+                               subscriptions=[cmd_sub, diag_sub],
                                subscribers={topics.INS.name: ("tvc_controller",)})
         workdir = Path(tempfile.mkdtemp(prefix="vega-replay-"))
         controller = _ControllerProcess(params, workdir, rosenv.ros_environment())

@@ -3,18 +3,18 @@
 :func:`simulation_messages` turns a :class:`~vega_sim.closed_loop.SimulationResult` into the
 messages the SIL nodes publish for the same run — ``VehicleState`` at every frame time
 t_start … t_end and ``/clock`` at those of :func:`vega_bus.schedule.clock_frames`,
-``InsMeasurement`` per frame, ``TvcCommand`` per controller step,
+``InsMeasurement`` per frame, ``TvcCommand`` and ``StepDiagnostics`` per controller step,
 ``ActuatorState`` per frame with its physics-rate samples — as (topic, log time [ns], rclpy
-message) in log-time order, each filled from its record (:mod:`vega_bus.records`) by
-:func:`vega_bus.wire.to_msg`, as the nodes fill theirs. Tests may alter them (a NaN, a dropped
-message, a stalled stamp) before :func:`write_messages` serialises them with
-``rclpy.serialization.serialize_message`` into a run bag through
-:class:`vega_bags.bagio.RunBagWriter`.
+message) in the recorder's file order ((log time, :data:`vega_bus.topics.RECORD_ORDER`)),
+each filled from its record (:mod:`vega_bus.records`) by :func:`vega_bus.wire.to_msg`, as
+the nodes fill theirs. Tests may alter them (a NaN, a dropped message, a stalled stamp)
+before :func:`write_messages` serialises them with ``rclpy.serialization.serialize_message``
+into a run bag through :class:`vega_bags.bagio.RunBagWriter`.
 
 Used by the bag tests and ``bench/bench_check.py`` (bags without starting the SIL), and as
 the reference for comparing a SIL bag with the in-process run. The controller's wall-clock
-``compute_time_s`` is not simulated: every command carries ``compute_time_s`` (default
-50 µs, the order of the measured controller step).
+step time is not simulated: every ``/vega/diagnostics`` message carries ``compute_time_s``
+(default 50 µs, the order of the measured controller step).
 """
 
 from __future__ import annotations
@@ -31,7 +31,6 @@ from vega_bags import bagio
 
 __all__ = ["scenario_yaml", "simulation_messages", "write_messages", "write_simulation_bag"]
 
-_ORDER = {t.name: i for i, t in enumerate(topics.ALL_TOPICS)}
 
 
 def scenario_yaml(scenario) -> str:
@@ -55,15 +54,17 @@ def simulation_messages(result, *, compute_time_s: float = 5e-5
     result
         :class:`vega_sim.closed_loop.SimulationResult`.
     compute_time_s
-        ``TvcCommand.compute_time_s`` of every command [s].
+        ``StepDiagnostics.compute_time_s`` of every command's diagnostics [s].
 
     Returns
     -------
     list of (topic, log time [ns], rclpy message)
-        Sorted by log time, then in :data:`vega_bus.topics.ALL_TOPICS` order.
+        Sorted by log time, then in :data:`vega_bus.topics.RECORD_ORDER` (the recorder's
+        file order).
     """
     from rosgraph_msgs.msg import Clock
-    from vega_msgs.msg import ActuatorState, InsMeasurement, TvcCommand, VehicleState
+    from vega_msgs.msg import (ActuatorState, InsMeasurement, StepDiagnostics, TvcCommand,
+                               VehicleState)
 
     out: list[tuple[str, int, Any]] = []
     r = result
@@ -94,8 +95,11 @@ def simulation_messages(result, *, compute_time_s: float = 5e-5
             stamp_ms=t_ms, sample_ms=int(r.cmd_sample_ms[i]), seq=i,
             deflection_cmd_rad=float(r.cmd_rad[i]), scheduling_velocity_mps=float(r.cmd_v_mps[i]),
             status=int(r.cmd_status[i])), TvcCommand())
-        m.compute_time_s = float(compute_time_s)
         out.append((topics.TVC_CMD.name, t_ms * NS_PER_MS, m))
+        d = StepDiagnostics(seq=i, compute_time_s=float(compute_time_s))
+        d.header.stamp = m.header.stamp
+        d.header.frame_id = topics.DIAGNOSTICS.publisher
+        out.append((topics.DIAGNOSTICS.name, t_ms * NS_PER_MS, d))
     dt_ms = int(r.act_t_ms[1] - r.act_t_ms[0])
     per_frame = int(r.ins_stamp_ms.size and (r.act_t_ms.size - 1) // r.ins_stamp_ms.size)
     for f in range(per_frame and (r.act_t_ms.size - 1) // per_frame):
@@ -107,7 +111,7 @@ def simulation_messages(result, *, compute_time_s: float = 5e-5
             accel_samples_radps2=tuple(r.beta_ddot_radps2[lo:hi].tolist()),
             command_samples_rad=(), sample_period_s=dt_ms / 1000.0), ActuatorState())
         out.append((topics.ACTUATOR.name, t_ms * NS_PER_MS, m))
-    out.sort(key=lambda item: (item[1], _ORDER[item[0]]))
+    out.sort(key=lambda item: (item[1], topics.RECORD_ORDER[item[0]]))
     return out
 
 

@@ -30,20 +30,23 @@ import time
 from typing import Callable, Iterable, Mapping
 
 from vega_bus.qos import control_qos
-from vega_bus.topics import ACTUATOR, CLOCK, INS, READY, RECORDED, RUN, TRUTH, TVC_CMD
+from vega_bus.topics import (ACTUATOR, CLOCK, DIAGNOSTICS, INS, READY, RECORDED, RUN, TRUTH,
+                             TVC_CMD)
 
 __all__ = ["PARTICIPANTS", "SUBSCRIBERS", "PUBLISHERS", "StartBarrier"]
 
 # Node names of a full SIL run (= executable names), the default ``participants`` parameter.
 PARTICIPANTS = ("plant", "ins_sensor", "tvc_controller", "tvc_actuator", "recorder")
 
-# Which participants subscribe to each topic (the recorder records every data topic and /clock).
+# Which participants subscribe to each topic (the recorder records every data topic, /clock and
+# the diagnostics).
 SUBSCRIBERS: Mapping[str, tuple[str, ...]] = {
     TRUTH.name: ("ins_sensor", "recorder"),
     INS.name: ("tvc_controller", "recorder"),
     TVC_CMD.name: ("tvc_actuator", "recorder"),
     ACTUATOR.name: ("plant", "recorder"),
     CLOCK.name: ("recorder",),
+    DIAGNOSTICS.name: ("recorder",),
     RECORDED.name: ("plant", "ins_sensor", "tvc_controller", "tvc_actuator"),
 }
 
@@ -51,7 +54,7 @@ SUBSCRIBERS: Mapping[str, tuple[str, ...]] = {
 # required: a tool taking the recorder's seat (vega replay --check-controller) publishes no
 # progress, and the nodes fall back to DDS acknowledgements then (vega_bus.shell.Shell.finish).
 PUBLISHERS: Mapping[str, str] = {
-    **{t.name: t.publisher for t in (TRUTH, INS, TVC_CMD, ACTUATOR, CLOCK)},
+    **{t.name: t.publisher for t in (TRUTH, INS, TVC_CMD, ACTUATOR, CLOCK, DIAGNOSTICS)},
     RUN.name: RUN.publisher,
 }
 

@@ -75,8 +75,8 @@ class InsOut(NamedTuple):
 
 
 class CommandOut(NamedTuple):
-    """One nozzle command: the fields of ``vega_msgs/TvcCommand`` except the wall-clock
-    ``compute_time_s``, which the node measures itself.
+    """One nozzle command: the fields of ``vega_msgs/TvcCommand`` (the controller node's
+    wall-clock step time goes to ``/vega/diagnostics``, not here).
 
     ``stamp_ms`` = arrival of the measurement + computing latency; ``sample_ms`` = the
     measurement's sample time; ``status`` one of the message's ``STATUS_*`` constants.

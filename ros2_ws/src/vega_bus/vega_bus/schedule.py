@@ -139,11 +139,12 @@ class RunInfo:
 
     def expected_counts(self) -> dict[str, int]:
         """Messages of a complete run by topic (:mod:`vega_bus.topics` names)."""
-        from vega_bus.topics import ACTUATOR, CLOCK, INS, TRUTH, TVC_CMD
+        from vega_bus.topics import ACTUATOR, CLOCK, DIAGNOSTICS, INS, TRUTH, TVC_CMD
 
         n = self.n_frames
+        commands = len(self.command_samples())
         return {TRUTH.name: n + 1, CLOCK.name: len(self.clock_frames()), INS.name: n,
-                TVC_CMD.name: len(self.command_samples()), ACTUATOR.name: n}
+                TVC_CMD.name: commands, ACTUATOR.name: n, DIAGNOSTICS.name: commands}
 
     def to_json(self) -> str:
         """One-line JSON (keys sorted)."""

@@ -12,6 +12,13 @@ BEST_EFFORT (rclpy's default /clock subscription) and RELIABLE readers match, wi
 topics' depth so that the recorder's RELIABLE reader loses no tick when it lags (a writer's
 KEEP_LAST history overwrites unacknowledged samples).
 
+Every field of a data topic is a function of the flight (scenario, seed, controller table):
+two runs of one scenario and seed give the same bytes on each. What the host measures (the
+controller's wall-clock step time) goes to :data:`DIAGNOSTICS` (``/vega/diagnostics``,
+``vega_msgs/StepDiagnostics``, data QoS), which is recorded beside the data topics (``vega
+check`` reads the compute-time budget from it) and is the one recorded topic whose bytes differ
+between runs. :data:`RECORD_ORDER` is the order of equal-time messages in a bag file.
+
 Control topics carry the start and the pace of a run, not data (they are not recorded):
 ``/vega/recorded`` (std_msgs/UInt32, data QoS: the recorder's progress, the plant's
 back-pressure; :mod:`vega_bus.schedule`), and
@@ -27,8 +34,8 @@ import importlib
 from typing import NamedTuple
 
 __all__ = ["Topic", "TRUTH", "INS", "TVC_CMD", "ACTUATOR", "CLOCK", "DATA_TOPICS",
-           "ALL_TOPICS", "READY", "RUN", "RECORDED", "DATA_QUEUE_DEPTH", "CONTROL_QUEUE_DEPTH",
-           "message_class"]
+           "ALL_TOPICS", "DIAGNOSTICS", "RECORD_ORDER", "READY", "RUN", "RECORDED",
+           "DATA_QUEUE_DEPTH", "CONTROL_QUEUE_DEPTH", "message_class"]
 
 DATA_QUEUE_DEPTH = 1000  # messages; ≥ 10 s of the fastest topic (100 Hz) in flight
 CONTROL_QUEUE_DEPTH = 10  # messages per writer of /vega/ready and /vega/run (each sends one)
@@ -51,8 +58,15 @@ TVC_CMD = Topic("/vega/tvc_cmd", "vega_msgs/msg/TvcCommand", "tvc_controller", 5
 ACTUATOR = Topic("/vega/actuator", "vega_msgs/msg/ActuatorState", "tvc_actuator", 100.0)
 CLOCK = Topic("/clock", "rosgraph_msgs/msg/Clock", "plant", 10.0)   # vega_bus.schedule
 
+# Wall-clock step diagnostics of the controller: one per command, stamp and seq of the command.
+DIAGNOSTICS = Topic("/vega/diagnostics", "vega_msgs/msg/StepDiagnostics", "tvc_controller", 50.0)
+
 DATA_TOPICS = (TRUTH, INS, TVC_CMD, ACTUATOR)
-ALL_TOPICS = DATA_TOPICS + (CLOCK,)
+ALL_TOPICS = DATA_TOPICS + (CLOCK, DIAGNOSTICS)
+"""Every recorded topic (a run bag holds these)."""
+RECORD_ORDER = {t.name: i for i, t in enumerate(ALL_TOPICS)}
+"""Topic name → rank: a bag holds its messages sorted by (log time, rank, seq), so that equal-time
+messages of different topics sit in one order whatever order they arrived in."""
 
 # Control topics (not recorded): publisher "*" = every participant.
 READY = Topic("/vega/ready", "std_msgs/msg/String", "*", 0.0)

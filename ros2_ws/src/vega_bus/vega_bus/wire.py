@@ -16,7 +16,6 @@ Field rule (tests/bus/test_wire.py checks it against the rosidl-generated classe
   carries it: ``_rad``, ``_radps``, ``_m``, ``_mps``, ``_pa``, ``_s``, …); arrays and
   sequences are tuples of floats in a record;
 * not carried (:class:`WireType`): ``header.frame_id`` (each publisher sets it once);
-  ``TvcCommand.compute_time_s`` (measured by the controller node itself);
   ``ActuatorState.deflection_rad``, ``rate_radps``, ``accel_radps2`` (the last samples:
   written from :class:`~vega_bus.records.ActuatorOut`'s properties, not read back);
   ``ActuatorOut.command_samples_rad`` (not on the wire: ``()`` in a record read from a
@@ -74,7 +73,7 @@ class WireType:
 WIRE: dict[type, WireType] = {w.record: w for w in (
     WireType(TruthOut, topics.TRUTH),
     WireType(InsOut, topics.INS),
-    WireType(CommandOut, topics.TVC_CMD, measured=("compute_time_s",)),
+    WireType(CommandOut, topics.TVC_CMD),
     WireType(ActuatorOut, topics.ACTUATOR,
              derived=("deflection_rad", "rate_radps", "accel_radps2"),
              unsent=("command_samples_rad",)),

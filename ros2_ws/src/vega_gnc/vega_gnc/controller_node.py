@@ -23,8 +23,10 @@ stamp not later than the previous one (out of order), older than ``max_age_s`` a
 (stale) → ``STATUS_HOLD_LAST`` (the last command, for up to ``hold_limit_s``) then
 ``STATUS_SAFE_ZERO``; velocity outside the grid → ``STATUS_VELOCITY_CLAMPED``; command beyond
 ±6.5° → ``STATUS_LIMITED``. A stamp that is not on a whole millisecond makes the measurement
-invalid (same flags). Nothing in the loop raises. ``compute_time_s`` is the measured wall-clock
-time of the step (the only field that differs between two runs).
+invalid (same flags). Nothing in the loop raises. Every command is followed by a
+``/vega/diagnostics`` message (``vega_msgs/StepDiagnostics``: the command's stamp and seq, and
+``compute_time_s``, the measured wall-clock time of the step): the commands themselves hold
+only what the flight determines, so two runs of one scenario and seed give the same bytes.
 
 The node exits 0 after the run's last measurement (sample t_end − frame).
 """
@@ -72,7 +74,7 @@ def _resolved(reference_path, setting: str) -> str:
 
 def _controller(shell: Shell) -> None:
     from std_msgs.msg import String
-    from vega_msgs.msg import InsMeasurement, TvcCommand
+    from vega_msgs.msg import InsMeasurement, StepDiagnostics, TvcCommand
 
     from vega_gnc.controller_table import default_table_path, load_controller_table
     from vega_gnc.controller_step import ControllerStep
@@ -117,11 +119,14 @@ def _controller(shell: Shell) -> None:
         raise NodeExit(EXIT_BAD_INPUT, f"{path}: {exc}") from None
 
     pub = node.create_publisher(TvcCommand, topics.TVC_CMD.name, qos.data_qos())
+    diag_pub = node.create_publisher(StepDiagnostics, topics.DIAGNOSTICS.name, qos.data_qos())
     queue = shell.inbox(InsMeasurement, topics.INS.name, qos.data_qos())
     recorded = shell.recorder_progress(participants)
-    shell.barrier(participants, [pub], barrier_timeout)
+    shell.barrier(participants, [pub, diag_pub], barrier_timeout)
 
     out = TvcCommand()
+    diag = StepDiagnostics()
+    diag.header.frame_id = node.get_name()
     clock = time.perf_counter
     for k in range(info.n_frames):
         shell.wait_until(lambda: bool(queue), lambda: f"{topics.INS.name} seq {k}")
@@ -132,9 +137,12 @@ def _controller(shell: Shell) -> None:
         if cmd is None:
             continue
         wire.to_msg(cmd, out)
-        out.compute_time_s = elapsed
         pub.publish(out)
-    shell.finish([pub], recorded, info.n_frames + 1)
+        diag.header.stamp = out.header.stamp
+        diag.seq = out.seq
+        diag.compute_time_s = elapsed
+        diag_pub.publish(diag)
+    shell.finish([pub, diag_pub], recorded, info.n_frames + 1)
 
 
 def main(argv=None) -> None:
