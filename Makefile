@@ -4,6 +4,7 @@
 #   make lint    ruff (lint, docstrings) and the package layering contracts (pyproject.toml)
 #   make test    `make lint`, then the whole pytest suite (sets up first)
 #   make sil     fly the default SIL scenario into bags/ (sets up first; SIL_ARGS=...)
+#   make mutation  mutmut over the core modules, one at a time (MODULE=name: one; docs/TESTING.md)
 #   make clean   remove the workspace build products and caches; `make distclean` also .venv
 #
 # Every step is incremental: a second `make setup` with nothing changed does nothing.
@@ -45,7 +46,7 @@ COLCON_FLAGS := --symlink-install \
 .PHONY: setup lint test sil clean distclean help
 
 help:
-	@sed -n '2,12s/^# \{0,1\}//p' $(firstword $(MAKEFILE_LIST))
+	@sed -n '2,13s/^# \{0,1\}//p' $(firstword $(MAKEFILE_LIST))
 
 setup: $(REQUIREMENTS_STAMP) $(WS_STAMP) $(OFFLINE_STAMP) $(WRAPPERS)
 
@@ -106,6 +107,14 @@ test: setup lint
 # SIL_ARGS: more `vega sil run` arguments, e.g. make sil SIL_ARGS="--scenario thesis --seed 2"
 sil: setup
 	$(VENV)/bin/vega sil run --out $(ROOT)/bags $(SIL_ARGS)
+
+# MODULE: one module of tools/mutation/targets.toml (default: all, ~2 min each, one worker);
+# table: bench/results/mutation.md, survivors: bench/results/mutation/<module>.json
+MODULE ?=
+.PHONY: mutation
+mutation: setup
+	cd $(ROOT) && OPENBLAS_NUM_THREADS=1 $(VENV)/bin/vega-env python tools/mutation/run.py \
+	  $(if $(MODULE),--module $(MODULE))
 
 clean:
 	rm -rf $(WS)/build $(WS)/install $(WS)/log $(ROOT)/.pytest_cache $(ROOT)/.ruff_cache

@@ -1,0 +1,225 @@
+"""Mutation testing of the core modules with mutmut (``make mutation [MODULE=...]``).
+
+Each module of ``tools/mutation/targets.toml`` is mutated in a scratch copy of the packages
+(``build/mutation/<module>/``; the checkout itself is never edited, so other work and test runs
+in the same tree see the real code), mutmut runs the module's covering tests against every
+mutant, one process at a time, and the outcome is written to
+``bench/results/mutation/<module>.json``; ``bench/results/mutation.md`` is the table of all
+modules run so far. Survivors listed in ``tools/mutation/equivalents.toml`` (mutant name and
+the diff line it must still have, plus a one-line reason) count as equivalent.
+
+Excluded by configuration (docs/TESTING.md): the text of exceptions raised, log calls and
+prints (``DO_NOT_MUTATE_PATTERNS``: the whole statement on such a line is not mutated) and
+docstrings (mutmut never mutates triple-quoted strings).
+
+Usage: ``python tools/mutation/run.py [--module NAME ...] [--max-children 1]``; run it through
+``vega-env`` (the Makefile does) so the ROS packages' dependencies import.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+HERE = Path(__file__).resolve().parent
+TARGETS = HERE / "targets.toml"
+EQUIVALENTS = HERE / "equivalents.toml"
+WORK = ROOT / "build" / "mutation"
+RESULTS = ROOT / "bench" / "results" / "mutation"
+TABLE = ROOT / "bench" / "results" / "mutation.md"
+
+# Lines whose statement is not mutated: message text of raised exceptions, log calls, prints.
+DO_NOT_MUTATE_PATTERNS = [
+    r"^\s*raise\b",
+    r"\.(debug|info|warning|warn|error|fatal|critical|exception)\(\s*f?['\"]",
+    r"get_logger\(\)",
+    r"^\s*print\(",
+]
+
+# Repository directories the tests and modules read by path from the repository root (docs,
+# config tables, messages); linked into the scratch copy and its mutants tree so that
+# ``Path(__file__).parents[...]`` still finds them.
+ROOT_LINKS = ["ros2_ws", "docs", "bench", "bags", "tools"]
+
+STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped",
+          36: "timeout", 24: "timeout", -24: "timeout", 152: "timeout", 255: "timeout",
+          None: "not checked"}
+
+
+def _packages():
+    """Every Python package of the project: (import name, source directory)."""
+    found = [(p.name, p / p.name) for p in sorted((ROOT / "ros2_ws" / "src").iterdir())
+             if (p / p.name / "__init__.py").is_file()]
+    found.append(("offline_synthesis", ROOT / "offline_synthesis" / "offline_synthesis"))
+    return found
+
+
+def _toml_list(items):
+    return "[" + ", ".join(json.dumps(str(i)) for i in items) + "]"
+
+
+def _stage(name, target):
+    """Build build/mutation/<name>/: package copies, tests, pyproject with the mutmut config."""
+    stage = WORK / name
+    if stage.exists():
+        shutil.rmtree(stage)
+    stage.mkdir(parents=True)
+    ignore = shutil.ignore_patterns("__pycache__", "*.pyc")
+    names = []
+    for pkg, src in _packages():
+        shutil.copytree(src, stage / pkg, ignore=ignore, symlinks=True)
+        names.append(pkg)
+    shutil.copytree(ROOT / "tests", stage / "tests", ignore=ignore)
+    source = Path(target["source"])
+    pkg = source.parent.name
+    rel = f"{pkg}/{source.name}"
+    tests = [str(t) for t in target["tests"] if (ROOT / t).is_file()]
+    missing = [str(t) for t in target["tests"] if not (ROOT / t).is_file()]
+    (stage / "pyproject.toml").write_text(
+        "[tool.mutmut]\n"
+        f"source_paths = {_toml_list([pkg])}\n"
+        f"only_mutate = {_toml_list([rel])}\n"
+        f"also_copy = {_toml_list(n for n in names if n != pkg)}\n"
+        f"pytest_add_cli_args_test_selection = {_toml_list(tests)}\n"
+        'pytest_add_cli_args = ["-p", "no:cacheprovider", "-p", "no:randomly", "-q"]\n'
+        f"do_not_mutate_patterns = {_toml_list(DO_NOT_MUTATE_PATTERNS)}\n"
+        "use_git_change_detection = false\n"
+        "\n[tool.pytest.ini_options]\n"
+        'testpaths = ["tests"]\npythonpath = ["tests", "tests/sil"]\n')
+    mutants = stage / "mutants"
+    mutants.mkdir()
+    for link in ROOT_LINKS:
+        if (ROOT / link).exists():
+            for where in (stage, mutants):
+                (where / link).symlink_to(ROOT / link)
+    return stage, rel, tests, missing
+
+
+def _equivalents():
+    if not EQUIVALENTS.is_file():
+        return {}
+    return tomllib.loads(EQUIVALENTS.read_text())
+
+
+def _mutmut(stage, *args, log=None):
+    exe = Path(sys.executable).parent / "mutmut"
+    if log is None:
+        return subprocess.run([str(exe), *args], cwd=stage, text=True, check=False,
+                              capture_output=True)
+    with open(log, "w") as out:
+        return subprocess.run([str(exe), *args], cwd=stage, text=True, check=False,
+                              stdout=out, stderr=subprocess.STDOUT)
+
+
+def run_module(name, target, max_children, commit):
+    """Mutate one module, return its result record (also written to bench/results)."""
+    stage, rel, tests, missing = _stage(name, target)
+    started = time.monotonic()
+    log = stage / "mutmut.log"
+    print(f"mutation: {name}: mutmut run (log {log.relative_to(ROOT)})", flush=True)
+    proc = _mutmut(stage, "run", "--max-children", str(max_children), log=log)
+    elapsed = time.monotonic() - started
+    meta = stage / "mutants" / (rel + ".meta")
+    if proc.returncode != 0 or not meta.is_file():
+        print(f"mutation: mutmut run failed for {name} (exit {proc.returncode}); log: {log}",
+              file=sys.stderr)
+        return None
+    codes = json.loads(meta.read_text())["exit_code_by_key"]
+    equivalents = _equivalents().get(name, {})
+    mutants = []
+    for key, code in sorted(codes.items(), key=lambda kv: (kv[0].rsplit("_", 1)[0],
+                                                           int(kv[0].rsplit("_", 1)[1]))):
+        status = STATUS.get(code, "suspicious")
+        record = {"name": key, "status": status}
+        if status != "killed":
+            diff = _mutmut(stage, "show", key).stdout
+            record["diff"] = [ln for ln in diff.splitlines()
+                              if ln.startswith(("+", "-")) and not ln.startswith(("+++", "---"))]
+            eq = equivalents.get(key)
+            if status == "survived" and eq and eq["line"] in "\n".join(record["diff"]):
+                record["status"] = "equivalent"
+                record["reason"] = eq["reason"]
+        mutants.append(record)
+    counts = {s: sum(m["status"] == s for m in mutants)
+              for s in ("killed", "survived", "equivalent", "timeout", "no tests", "suspicious")}
+    judged = len(mutants) - counts["equivalent"] - counts["no tests"]
+    result = {
+        "module": name, "source": target["source"], "tests": tests, "missing_tests": missing,
+        "commit": commit, "date": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
+        "seconds": round(elapsed, 1), "max_children": max_children, "total": len(mutants),
+        "counts": counts,
+        "killed_percent": round(100.0 * (counts["killed"] + counts["timeout"]) / judged, 1)
+        if judged else None,
+        "not_killed": [m for m in mutants if m["status"] != "killed"],
+    }
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / f"{name}.json").write_text(json.dumps(result, indent=1) + "\n")
+    return result
+
+
+def write_table(order):
+    """bench/results/mutation.md from every module's JSON (modules in targets order)."""
+    rows = []
+    for name in order:
+        path = RESULTS / f"{name}.json"
+        if not path.is_file():
+            continue
+        r = json.loads(path.read_text())
+        c = r["counts"]
+        rows.append(f"| {name} | {r['total']} | {c['killed']} | {c['survived']} | "
+                    f"{c['equivalent']} | {c['timeout']} | {c['no tests'] + c['suspicious']} | "
+                    f"{r['killed_percent']} | {r['seconds']:.0f} | {r['commit']} | {r['date']} |")
+    TABLE.parent.mkdir(parents=True, exist_ok=True)
+    TABLE.write_text(
+        "# Mutation testing: per-module table (written by `make mutation`)\n\n"
+        "killed % = (killed + timeout) / (all - equivalent - no tests); one worker process.\n"
+        "Survivor diffs: bench/results/mutation/<module>.json. How to run: docs/TESTING.md.\n\n"
+        "| module | mutants | killed | survived | equivalent | timeout | other | killed % "
+        "| run time s | commit | date |\n|---|---|---|---|---|---|---|---|---|---|---|\n"
+        + "\n".join(rows) + "\n")
+
+
+def main(argv=None):
+    """Run the selected modules, print a summary line each, rewrite the table."""
+    targets = tomllib.loads(TARGETS.read_text())["module"]
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--module", action="append", choices=sorted(targets),
+                        help="module of tools/mutation/targets.toml (repeatable; default: all)")
+    parser.add_argument("--max-children", type=int, default=1,
+                        help="parallel mutant processes (default 1)")
+    args = parser.parse_args(argv)
+    if args.max_children < 1:
+        print("mutation: --max-children must be >= 1", file=sys.stderr)
+        return 2
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, text=True,
+                            capture_output=True, check=False).stdout.strip() or "unknown"
+    failed = []
+    for name in args.module or list(targets):
+        result = run_module(name, targets[name], args.max_children, commit)
+        if result is None:
+            failed.append(name)
+            continue
+        c = result["counts"]
+        print(f"mutation: {name}: {result['total']} mutants, {c['killed']} killed, "
+              f"{c['survived']} survived, {c['equivalent']} equivalent, {c['timeout']} timeout "
+              f"({result['killed_percent']} % killed) in {result['seconds']:.0f} s")
+        for m in result["not_killed"]:
+            if m["status"] == "survived":
+                print(f"  survived {m['name']}: {' | '.join(m['diff'])}")
+    write_table(list(targets))
+    print(f"mutation: table {TABLE.relative_to(ROOT)}")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
