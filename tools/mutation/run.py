@@ -50,6 +50,11 @@ DO_NOT_MUTATE_PATTERNS = [
 # ``Path(__file__).parents[...]`` still finds them.
 ROOT_LINKS = ["ros2_ws", "docs", "bench", "bags", "tools"]
 
+# Seconds added to mutmut's per-mutant limit (15 × the covering tests' own durations): module-
+# and session-scoped fixtures (an SDP solve, a simulated flight) run again in every mutant's
+# process and are not part of the measured test durations; per module: ``timeout_s``.
+TIMEOUT_S = 20.0
+
 STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped",
           36: "timeout", 24: "timeout", -24: "timeout", 152: "timeout", 255: "timeout",
           None: "not checked"}
@@ -93,6 +98,7 @@ def _stage(name, target):
         'pytest_add_cli_args = ["-p", "no:cacheprovider", "-p", "no:randomly", "-q"]\n'
         f"do_not_mutate_patterns = {_toml_list(DO_NOT_MUTATE_PATTERNS)}\n"
         "use_git_change_detection = false\n"
+        f"timeout_constant = {float(target.get('timeout_s', TIMEOUT_S))}\n"
         "\n[tool.pytest.ini_options]\n"
         'testpaths = ["tests"]\npythonpath = ["tests", "tests/sil"]\n')
     mutants = stage / "mutants"
