@@ -225,3 +225,20 @@ def test_weights_without_rate_slices(plain_file):
     assert t.weights(900.0) == (1, 1.0, 0, 0.0)
     i, w, j, s = t.weights(650.0, 20.0)
     assert (i, w, j, s) == (1, 0.5, 0, 0.0)
+
+
+def test_loaded_table_names_its_file(plain_file):
+    from vega_gnc.controller_table import load_controller_table
+
+    assert load_controller_table(plain_file).path == plain_file
+
+
+def test_integer_rate_grid_is_read_as_float(rate_file):
+    t = validate_arrays(rate_file, _arrays(rate_file, rate_grid_mps2=np.array([0, 36])))
+    assert t.rate_grid_mps2.dtype == np.float64
+    assert t.rate_grid_mps2.tolist() == [0.0, 36.0]
+
+
+@pytest.mark.parametrize("A", [np.ones(3), np.ones((3, 2))])
+def test_state_matrix_of_too_few_dimensions_is_refused(plain_file, A):
+    _refused(plain_file, _arrays(plain_file, A=A), "'A' has shape")
