@@ -1,9 +1,11 @@
 """Mutation testing of the core modules with mutmut (``make mutation [MODULE=...]``).
 
-Each module of ``tools/mutation/targets.toml`` is mutated in a scratch copy of the packages
-(``build/mutation/<module>/``; the checkout itself is never edited, so other work and test runs
-in the same tree see the real code), mutmut runs the module's covering tests against every
-mutant, one process at a time, and the outcome is written to
+Each module of ``tools/mutation/targets.toml`` is mutated in a scratch copy of the packages and
+tests as committed in HEAD (``build/mutation/<module>/``; the checkout itself is never edited, so
+other work and test runs in the same tree see the real code, and uncommitted work in progress
+does not enter the figures; ``--worktree`` takes the checkout as it is), mutmut runs the
+module's covering tests against every mutant, one process at a time, and the outcome is
+written to
 ``bench/results/mutation/<module>.json``; ``bench/results/mutation.md`` is the table of all
 modules run so far. Survivors listed in ``tools/mutation/equivalents.toml`` (mutant name and
 the diff line it must still have, plus a one-line reason) count as equivalent.
@@ -12,14 +14,16 @@ Excluded by configuration (docs/TESTING.md): the text of exceptions raised, log 
 prints (``DO_NOT_MUTATE_PATTERNS``: the whole statement on such a line is not mutated) and
 docstrings (mutmut never mutates triple-quoted strings).
 
-Usage: ``python tools/mutation/run.py [--module NAME ...] [--max-children 1]``; run it through
-``vega-env`` (the Makefile does) so the ROS packages' dependencies import.
+Usage: ``python tools/mutation/run.py [--module NAME ...] [--max-children 1] [--worktree]``;
+run it through ``vega-env`` (the Makefile does) so the ROS packages' dependencies import.
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import datetime as _dt
+import difflib
 import json
 import os
 import shutil
@@ -49,6 +53,8 @@ DO_NOT_MUTATE_PATTERNS = [
 # config tables, messages); linked into the scratch copy and its mutants tree so that
 # ``Path(__file__).parents[...]`` still finds them.
 ROOT_LINKS = ["ros2_ws", "docs", "bench", "bags", "tools"]
+# What is taken from the commit (the rest, e.g. the built ROS install, from the checkout).
+TREE_PATHS = ["ros2_ws/src", "offline_synthesis", "tests", "docs", "tools"]
 
 # Seconds added to mutmut's per-mutant limit (15 × the covering tests' own durations): module-
 # and session-scoped fixtures (an SDP solve, a simulated flight) run again in every mutant's
@@ -60,11 +66,29 @@ STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests"
           None: "not checked"}
 
 
-def _packages():
+def _tree(commit):
+    """The files the runs read: the committed tree of ``commit`` (extracted once into
+    build/mutation/_tree-<commit>/, so that uncommitted edits in the checkout, e.g. other work
+    in progress, do not enter the figures), or the working tree itself for ``commit=None``."""
+    if commit is None:
+        return ROOT
+    tree = WORK / f"_tree-{commit}"
+    if not (tree / ".complete").is_file():
+        if tree.exists():
+            shutil.rmtree(tree)
+        tree.mkdir(parents=True)
+        archive = subprocess.run(["git", "archive", "--format=tar", commit, *TREE_PATHS],
+                                 cwd=ROOT, capture_output=True, check=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(tree)], input=archive, check=True)
+        (tree / ".complete").write_text(commit + "\n")
+    return tree
+
+
+def _packages(tree):
     """Every Python package of the project: (import name, source directory)."""
-    found = [(p.name, p / p.name) for p in sorted((ROOT / "ros2_ws" / "src").iterdir())
+    found = [(p.name, p / p.name) for p in sorted((tree / "ros2_ws" / "src").iterdir())
              if (p / p.name / "__init__.py").is_file()]
-    found.append(("offline_synthesis", ROOT / "offline_synthesis" / "offline_synthesis"))
+    found.append(("offline_synthesis", tree / "offline_synthesis" / "offline_synthesis"))
     return found
 
 
@@ -72,7 +96,7 @@ def _toml_list(items):
     return "[" + ", ".join(json.dumps(str(i)) for i in items) + "]"
 
 
-def _stage(name, target):
+def _stage(name, target, tree):
     """Build build/mutation/<name>/: package copies, tests, pyproject with the mutmut config."""
     stage = WORK / name
     if stage.exists():
@@ -80,15 +104,15 @@ def _stage(name, target):
     stage.mkdir(parents=True)
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc")
     names = []
-    for pkg, src in _packages():
+    for pkg, src in _packages(tree):
         shutil.copytree(src, stage / pkg, ignore=ignore, symlinks=True)
         names.append(pkg)
-    shutil.copytree(ROOT / "tests", stage / "tests", ignore=ignore)
+    shutil.copytree(tree / "tests", stage / "tests", ignore=ignore)
     source = Path(target["source"])
     pkg = source.parent.name
     rel = f"{pkg}/{source.name}"
-    tests = [str(t) for t in target["tests"] if (ROOT / t).is_file()]
-    missing = [str(t) for t in target["tests"] if not (ROOT / t).is_file()]
+    tests = [str(t) for t in target["tests"] if (tree / t).is_file()]
+    missing = [str(t) for t in target["tests"] if not (tree / t).is_file()]
     (stage / "pyproject.toml").write_text(
         "[tool.mutmut]\n"
         f"source_paths = {_toml_list([pkg])}\n"
@@ -104,9 +128,10 @@ def _stage(name, target):
     mutants = stage / "mutants"
     mutants.mkdir()
     for link in ROOT_LINKS:
-        if (ROOT / link).exists():
+        source = tree / link if (tree / link).exists() else ROOT / link
+        if source.exists():
             for where in (stage, mutants):
-                (where / link).symlink_to(ROOT / link)
+                (where / link).symlink_to(source)
     return stage, rel, tests, missing
 
 
@@ -126,9 +151,33 @@ def _mutmut(stage, *args, log=None):
                               stdout=out, stderr=subprocess.STDOUT)
 
 
-def run_module(name, target, max_children, commit):
+def _function_sources(path):
+    """Source of every mutmut-generated function of a mutated file, by function name."""
+    text = path.read_text()
+    lines = text.splitlines()
+    out = {}
+    for node in ast.walk(ast.parse(text)):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and "__mutmut_" in node.name:
+            out[node.name] = lines[node.lineno - 1:node.end_lineno]
+    return out
+
+
+def _diff(sources, key):
+    """The changed lines (+/-) of mutant ``key`` against the original function."""
+    func = key.rsplit(".", 1)[-1]
+    orig = sources.get(func.rsplit("__mutmut_", 1)[0] + "__mutmut_orig")
+    mutant = sources.get(func)
+    if orig is None or mutant is None:
+        return []
+    a = [ln.replace("__mutmut_orig", "") for ln in orig[1:]]
+    b = [ln.replace(func.rsplit(".", 1)[-1], "") for ln in mutant[1:]]
+    return [ln for ln in difflib.unified_diff(a, b, lineterm="", n=0)
+            if ln.startswith(("+", "-")) and not ln.startswith(("+++", "---"))]
+
+
+def run_module(name, target, max_children, commit, tree):
     """Mutate one module, return its result record (also written to bench/results)."""
-    stage, rel, tests, missing = _stage(name, target)
+    stage, rel, tests, missing = _stage(name, target, tree)
     started = time.monotonic()
     log = stage / "mutmut.log"
     print(f"mutation: {name}: mutmut run (log {log.relative_to(ROOT)})", flush=True)
@@ -140,6 +189,7 @@ def run_module(name, target, max_children, commit):
               file=sys.stderr)
         return None
     codes = json.loads(meta.read_text())["exit_code_by_key"]
+    sources = _function_sources(stage / "mutants" / rel)
     equivalents = _equivalents().get(name, {})
     mutants = []
     for key, code in sorted(codes.items(), key=lambda kv: (kv[0].rsplit("_", 1)[0],
@@ -147,9 +197,7 @@ def run_module(name, target, max_children, commit):
         status = STATUS.get(code, "suspicious")
         record = {"name": key, "status": status}
         if status != "killed":
-            diff = _mutmut(stage, "show", key).stdout
-            record["diff"] = [ln for ln in diff.splitlines()
-                              if ln.startswith(("+", "-")) and not ln.startswith(("+++", "---"))]
+            record["diff"] = _diff(sources, key)
             eq = equivalents.get(key)
             if status == "survived" and eq and eq["line"] in "\n".join(record["diff"]):
                 record["status"] = "equivalent"
@@ -202,6 +250,9 @@ def main(argv=None):
                         help="module of tools/mutation/targets.toml (repeatable; default: all)")
     parser.add_argument("--max-children", type=int, default=1,
                         help="parallel mutant processes (default 1)")
+    parser.add_argument("--worktree", action="store_true",
+                        help="mutate the checkout as it is, uncommitted edits included (default: "
+                             "the committed HEAD, so that the table names exactly what it ran)")
     args = parser.parse_args(argv)
     if args.max_children < 1:
         print("mutation: --max-children must be >= 1", file=sys.stderr)
@@ -209,9 +260,12 @@ def main(argv=None):
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, text=True,
                             capture_output=True, check=False).stdout.strip() or "unknown"
+    tree = _tree(None if args.worktree else commit)
+    if args.worktree:
+        commit += "+worktree"
     failed = []
     for name in args.module or list(targets):
-        result = run_module(name, targets[name], args.max_children, commit)
+        result = run_module(name, targets[name], args.max_children, commit, tree)
         if result is None:
             failed.append(name)
             continue
