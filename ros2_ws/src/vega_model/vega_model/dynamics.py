@@ -29,7 +29,7 @@ from vega_model.parameters import ModelParameters
 __all__ = [
     "STATES", "INPUTS", "OUTPUTS", "NONLINEAR_INPUTS",
     "linear_model", "nonlinear_derivatives", "NonlinearModel", "nonlinear_outputs",
-    "ins_outputs", "angle_of_attack",
+    "ins_outputs", "ins_outputs_tuple", "angle_of_attack", "alpha_and_q_alpha",
 ]
 
 STATES = ("theta_rad", "theta_dot_radps", "z_m", "z_dot_mps",
@@ -136,6 +136,13 @@ def _airflow(p: ModelParameters, theta: float, theta_dot: float, z_dot: float,
 def angle_of_attack(p: ModelParameters, x, wind_mps: float) -> float:
     """Angle of attack at the CP [rad] for state ``x`` and wind ``wind_mps``."""
     return _airflow(p, float(x[0]), float(x[1]), float(x[3]), float(wind_mps))[0]
+
+
+def alpha_and_q_alpha(p: ModelParameters, x, wind_mps: float) -> tuple[float, float]:
+    """Angle of attack at the CP [rad] and Qα [Pa·rad] for state ``x`` and wind ``wind_mps``
+    (the first output of :func:`nonlinear_outputs`, as plain floats)."""
+    alpha, airspeed = _airflow(p, float(x[0]), float(x[1]), float(x[3]), float(wind_mps))
+    return alpha, 0.5 * p.rho_kgpm3 * airspeed * airspeed * alpha
 
 
 def nonlinear_derivatives(p: ModelParameters, x, u) -> np.ndarray:
@@ -306,14 +313,17 @@ def ins_outputs(p: ModelParameters, x) -> np.ndarray:
     The INS sits l = x_INS − x_CG ahead of the CG; bending adds the local slope
     (subtracted, θ_local = θ − Σ Ψr q) and the local displacement (added).
     """
+    return np.array(ins_outputs_tuple(p, x))
+
+
+def ins_outputs_tuple(p: ModelParameters, x) -> tuple[float, float, float, float]:
+    """:func:`ins_outputs` as a tuple of floats (the INS model's per-sample path)."""
     theta, theta_dot, z, z_dot, q1, q2, q1d, q2d = (float(v) for v in x)
     ri, ti, li = p.psi_r_ins, p.psi_t_ins, p.l_ins_m
-    return np.array([
-        theta - ri[0] * q1 - ri[1] * q2,
-        theta_dot - ri[0] * q1d - ri[1] * q2d,
-        z - li * math.sin(theta) + ti[0] * q1 + ti[1] * q2,
-        z_dot - li * math.cos(theta) * theta_dot + ti[0] * q1d + ti[1] * q2d,
-    ])
+    return (theta - ri[0] * q1 - ri[1] * q2,
+            theta_dot - ri[0] * q1d - ri[1] * q2d,
+            z - li * math.sin(theta) + ti[0] * q1 + ti[1] * q2,
+            z_dot - li * math.cos(theta) * theta_dot + ti[0] * q1d + ti[1] * q2d)
 
 
 def nonlinear_outputs(p: ModelParameters, x, u) -> np.ndarray:
@@ -322,6 +332,5 @@ def nonlinear_outputs(p: ModelParameters, x, u) -> np.ndarray:
     Qα = Q·α with Q the dynamic pressure of the actual airspeed at the CP and α the
     signed angle of attack there (thesis Eq. 2.18 in the pitch plane) [Pa·rad].
     """
-    alpha, airspeed = _airflow(p, float(x[0]), float(x[1]), float(x[3]), float(u[2]))
-    q_alpha = 0.5 * p.rho_kgpm3 * airspeed * airspeed * alpha
+    q_alpha = alpha_and_q_alpha(p, x, u[2])[1]
     return np.concatenate(([q_alpha], ins_outputs(p, x)))

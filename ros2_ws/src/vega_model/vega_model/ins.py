@@ -22,11 +22,15 @@ from typing import NamedTuple
 
 import numpy as np
 
-from vega_model.dynamics import ins_outputs
+from vega_model.dynamics import ins_outputs_tuple
 from vega_model.parameters import ModelParameters
 from vega_model.vehicle_data import VehicleData
 
 __all__ = ["InsParams", "InsSample", "InsSensor", "sample_schedule"]
+
+# Samples' worth of noise drawn from the generator at a time (a performance detail only: the
+# sequence is the same as five draws per sample).
+_SAMPLE_BLOCK = 256
 
 
 @dataclass(frozen=True)
@@ -106,11 +110,14 @@ class InsSensor:
         self._sigma = np.array([params.sigma_theta_rad, params.sigma_theta_dot_radps,
                                 params.sigma_z_m, params.sigma_z_dot_mps,
                                 params.sigma_velocity_mps])
+        self._sigma_f = tuple(self._sigma.tolist())
         self.reset()
 
     def reset(self) -> None:
         """Restart the noise sequence from the seed."""
         self._rng = np.random.Generator(np.random.PCG64(self.seed))
+        self._noise: list[float] = []
+        self._next = 0
 
     def measure(self, x_truth, model_params: ModelParameters, velocity_mps: float) -> InsSample:
         """Measure the truth state.
@@ -130,12 +137,21 @@ class InsSensor:
             Thesis Eqs. 2.33–2.36 via :func:`vega_model.dynamics.ins_outputs`, plus
             N(0, σ²) noise per channel (Eq. 4.18) when ``noise`` is on.
         """
-        y = np.empty(5)
-        y[:4] = ins_outputs(model_params, x_truth)
-        y[4] = velocity_mps
-        if self.noise:
-            y += self._sigma * self._rng.standard_normal(5)
-        return InsSample(*y.tolist())
+        th, thd, z, zd = ins_outputs_tuple(model_params, x_truth)
+        v = float(velocity_mps)
+        if not self.noise:
+            return InsSample(th, thd, z, zd, v)
+        # five draws per sample, taken from the generator in blocks (the same sequence as
+        # standard_normal(5) per sample); y + σ·n as numpy's y += σ * n computes it
+        i = self._next
+        if i == len(self._noise):
+            self._noise = self._rng.standard_normal(5 * _SAMPLE_BLOCK).tolist()
+            i = 0
+        n = self._noise
+        s0, s1, s2, s3, s4 = self._sigma_f
+        self._next = i + 5
+        return InsSample(th + s0 * n[i], thd + s1 * n[i + 1], z + s2 * n[i + 2],
+                         zd + s3 * n[i + 3], v + s4 * n[i + 4])
 
 
 def sample_schedule(params: InsParams, t_end_s: float, t_start_s: float = 0.0):

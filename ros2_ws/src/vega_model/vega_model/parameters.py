@@ -21,8 +21,10 @@ from dataclasses import dataclass, field, fields, replace
 from functools import lru_cache
 from typing import Mapping
 
+import numpy as np
+
 from vega_model.aero import Aerodynamics
-from vega_model.flight_conditions import FlightConditions
+from vega_model.flight_conditions import COLUMNS, FlightConditions
 from vega_model.vehicle_data import VehicleData, load_vehicle_data
 
 __all__ = ["ModelParameters", "ModelContext", "model_parameters", "default_context",
@@ -37,6 +39,11 @@ PARAMETER_UNITS: dict[str, str] = {
     "axial_force_n": "N", "f1_hz": "Hz", "f2_hz": "Hz", "zeta": "1",
     "nozzle_mass_kg": "kg", "nozzle_inertia_kgm2": "kg*m^2", "nozzle_lever_m": "m",
 }
+
+
+# The deviations :meth:`ModelParameters.perturbed` applies (thesis Table 2.3).
+_DEVIATION_NAMES = ("thrust", "velocity", "density", "x_cp", "x_cg", "mass", "jyy",
+                    "bending_frequency_1", "bending_frequency_2", "psi_mode_1", "psi_mode_2")
 
 
 @dataclass(frozen=True)
@@ -120,9 +127,7 @@ class ModelParameters:
             Q is recomputed from the perturbed density and velocity; C_Nα, x_CP (before
             its own deviation) and the axial force follow the perturbed Mach.
         """
-        d = {k: float(deviations.get(k, 0.0)) for k in (
-            "thrust", "velocity", "density", "x_cp", "x_cg", "mass", "jyy",
-            "bending_frequency_1", "bending_frequency_2", "psi_mode_1", "psi_mode_2")}
+        d = {k: float(deviations.get(k, 0.0)) for k in _DEVIATION_NAMES}
         v = self.v_mps * (1.0 + d["velocity"])
         rho = self.rho_kgpm3 * (1.0 + d["density"])
         mach = v / self.sound_speed_mps
@@ -177,6 +182,18 @@ class ModelContext:
         """First and last time of the flight-condition table [s]."""
         return float(self.conditions.t_s[0]), float(self.conditions.t_s[-1])
 
+    def parameters_at_times(self, t_s, deviations: Mapping[str, float] | None = None
+                            ) -> list[ModelParameters]:
+        """``[parameters(t).perturbed(deviations) for t in t_s]`` (without ``perturbed`` when
+        no deviation is non-zero), the same numbers bit for bit, computed on arrays: a run's
+        10 001 parameter sets in ≈ 0.05 s instead of ≈ 0.2 s (a Monte Carlo flight forms
+        them all anew)."""
+        if not isinstance(self.aero, Aerodynamics):
+            return [self.parameters(float(t)).perturbed(deviations)
+                    if deviations and any(deviations.values()) else self.parameters(float(t))
+                    for t in np.asarray(t_s, dtype=float).ravel()]
+        return _parameters_at_times(self, t_s, deviations)
+
     def parameters(self, t_s: float) -> ModelParameters:
         """Frozen-time model parameters at flight time ``t_s`` (clamped to the table)."""
         fc = self.conditions.at(t_s)
@@ -198,6 +215,75 @@ class ModelContext:
             psi_t_ins=(lin["ti1"], lin["ti2"]), psi_r_ins=(lin["ri1"], lin["ri2"]),
             aero=self.aero, **self._const,
         )
+
+
+def _conditions_at_times(conditions: FlightConditions, t: np.ndarray) -> dict[str, np.ndarray]:
+    """:meth:`FlightConditions.at` for many times: each column, every number equal to
+    ``at``'s (the same interpolation formula, element by element; the end rows outside the
+    table)."""
+    if np.isnan(t).any():
+        raise ValueError("flight conditions: time is NaN")
+    times = conditions.t_s
+    data = np.column_stack([conditions.column(name) for name in COLUMNS])
+    out = np.empty((t.size, data.shape[1]))
+    low, high = ~(t > times[0]), t >= times[-1]
+    out[low] = data[0]
+    out[high & ~low] = data[-1]
+    inside = ~(low | high)
+    ti = t[inside]
+    i = np.searchsorted(times, ti, side="right") - 1
+    r0, r1 = data[i], data[i + 1]
+    w = (ti - times[i]) / (times[i + 1] - times[i])
+    out[inside] = r0 + w[:, None] * (r1 - r0)
+    return {name: out[:, k] for k, name in enumerate(COLUMNS)}
+
+
+def _parameters_at_times(ctx: "ModelContext", t_s, deviations: Mapping[str, float] | None
+                         ) -> list[ModelParameters]:
+    """:meth:`ModelContext.parameters_at_times` (the formulas of :meth:`ModelContext.parameters`
+    and :meth:`ModelParameters.perturbed`, on arrays: the same operations element by element,
+    the aerodynamic tables through the same ``numpy.interp``)."""
+    t = np.asarray(t_s, dtype=float).ravel()
+    col = _conditions_at_times(ctx.conditions, t)
+    v, rho, a = col["v_mps"], col["rho_kgpm3"], col["sound_speed_mps"]
+    aero = ctx.aero
+    s_ref = ctx._const["s_ref_m2"]
+    s = np.minimum(np.maximum((t - ctx._t0) / (ctx._t1 - ctx._t0), 0.0), 1.0)
+    lin = {k: p[0] + s * (p[1] - p[0]) for k, p in ctx._pairs.items()}
+    thrust, x_cg, mass, jyy = col["thrust_n"], col["x_cg_m"], col["mass_kg"], col["jyy_kgm2"]
+    d = {k: float((deviations or {}).get(k, 0.0)) for k in _DEVIATION_NAMES}
+    perturb = bool(deviations) and any(deviations.values())
+    if perturb:
+        v = v * (1.0 + d["velocity"])
+        rho = rho * (1.0 + d["density"])
+    mach = v / a
+    q = 0.5 * rho * v * v
+    cn_alpha, x_cp = aero.cn_alpha(mach), aero.x_cp(mach)
+    axial = q * s_ref * aero.c_a(mach)
+    if perturb:
+        x_cp = x_cp * (1.0 + d["x_cp"])
+        thrust = thrust * (1.0 + d["thrust"])
+        x_cg = x_cg * (1.0 + d["x_cg"])
+        mass = mass * (1.0 + d["mass"])
+        jyy = jyy * (1.0 + d["jyy"])
+        lin["f1"] = lin["f1"] * (1.0 + d["bending_frequency_1"])
+        lin["f2"] = lin["f2"] * (1.0 + d["bending_frequency_2"])
+        s1, s2 = 1.0 + d["psi_mode_1"], 1.0 + d["psi_mode_2"]
+        for key in ("tp", "rp", "ti", "ri"):
+            lin[key + "1"] = lin[key + "1"] * s1
+            lin[key + "2"] = lin[key + "2"] * s2
+    columns = [c.tolist() for c in (
+        t, v, q, mach, rho, col["h_m"], a, cn_alpha, x_cp, x_cg, jyy, mass, thrust, axial,
+        lin["f1"], lin["f2"], lin["tp1"], lin["tp2"], lin["rp1"], lin["rp2"], lin["ti1"],
+        lin["ti2"], lin["ri1"], lin["ri2"])]
+    const = ctx._const
+    return [ModelParameters(
+        t_s=ts, v_mps=vv, q_pa=qq, mach=mm, rho_kgpm3=rr, h_m=hh, sound_speed_mps=aa,
+        cn_alpha_per_rad=cn, x_cp_m=xp, x_cg_m=xg, jyy_kgm2=jj, mass_kg=ms, thrust_n=th,
+        axial_force_n=ax, f1_hz=f1, f2_hz=f2, psi_t_pvp=(tp1, tp2), psi_r_pvp=(rp1, rp2),
+        psi_t_ins=(ti1, ti2), psi_r_ins=(ri1, ri2), aero=aero, **const)
+        for (ts, vv, qq, mm, rr, hh, aa, cn, xp, xg, jj, ms, th, ax, f1, f2, tp1, tp2, rp1,
+             rp2, ti1, ti2, ri1, ri2) in zip(*columns)]
 
 
 @lru_cache(maxsize=1)

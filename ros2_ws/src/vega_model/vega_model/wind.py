@@ -274,8 +274,8 @@ class DrydenTurbulence:
         self._next += 1
         return n
 
-    def step(self, h_m: float, airspeed_mps: float) -> float:
-        """Advance one step at altitude ``h_m`` [m] and airspeed [m/s]; return v_turb [m/s].
+    def coefficients(self, h_m: float, airspeed_mps: float) -> tuple[float, float, float]:
+        """(σ_w, a, √(1 − a²)) of one step at altitude ``h_m`` [m] and airspeed [m/s].
 
         Raises
         ------
@@ -286,8 +286,35 @@ class DrydenTurbulence:
             raise ValueError(f"non-finite altitude {h_m!r} or airspeed {airspeed_mps!r}")
         sigma, ell = self._table.at(h_m)
         a = math.exp(-abs(airspeed_mps) * self.dt_s / ell)
-        self._eta = a * self._eta + math.sqrt(1.0 - a * a) * self._normal()
+        return sigma, a, math.sqrt(1.0 - a * a)
+
+    def step(self, h_m: float, airspeed_mps: float) -> float:
+        """Advance one step at altitude ``h_m`` [m] and airspeed [m/s]; return v_turb [m/s].
+
+        Raises
+        ------
+        ValueError
+            If the altitude or the airspeed is not finite.
+        """
+        sigma, a, b = self.coefficients(h_m, airspeed_mps)
+        self._eta = a * self._eta + b * self._normal()
         return sigma * self._eta
+
+    def steps(self, n: int, coefficients: tuple[float, float, float]) -> list[float]:
+        """``n`` steps with the :meth:`coefficients` of one altitude and airspeed: the numbers
+        of ``n`` calls of :meth:`step` there."""
+        sigma, a, b = coefficients
+        eta, noise, i = self._eta, self._noise, self._next
+        out = []
+        for _ in range(n):
+            if i == len(noise):
+                noise = self._noise = self._rng.standard_normal(_NOISE_BLOCK).tolist()
+                i = 0
+            eta = a * eta + b * noise[i]
+            i += 1
+            out.append(sigma * eta)
+        self._eta, self._next = eta, i
+        return out
 
 
 @dataclass(frozen=True)
@@ -405,3 +432,17 @@ class WindModel:
     def step(self, t_s: float, h_m: float, airspeed_mps: float) -> float:
         """Advance one step; return the total wind v_w [m/s] (positive: air toward +z)."""
         return self.step_components(t_s, h_m, airspeed_mps).total_mps
+
+    def steps(self, times_s, h_m: float, airspeed_mps: float) -> list[float]:
+        """:meth:`step` at each of ``times_s`` [s] with one altitude and airspeed (the
+        parameters held over a plant frame): the same numbers, computed once where they do
+        not depend on the time."""
+        turb = self.turbulence.steps(len(times_s),
+                                     self.turbulence.coefficients(h_m, airspeed_mps))
+        prof = (self.change.scale * _profile_scalar(h_m - self.change.shift_m,
+                                                    *self._profile_const)
+                if self.profile else 0.0)
+        gust = self.gust
+        if gust is None:
+            return [prof + w + 0.0 for w in turb]
+        return [prof + w + gust.velocity_mps(t) for t, w in zip(times_s, turb)]

@@ -133,17 +133,16 @@ class ActuatorStep:
         """
         if t_ms != self._t_ms:
             raise ValueError(f"actuator frame at {t_ms} ms, expected {self._t_ms} ms")
-        pending, act, dt = self._pending, self._act, self._dt_ms
-        step = act.step
+        pending, dt = self._pending, self._dt_ms
         command = self._command
-        samples = []
+        commands = []
         for k in range(self._steps):
             while pending and pending[0][0] <= t_ms + k * dt:
                 command = pending.pop(0)[2]
-            # (β, β̇, β̈) and the finite command in force (a NaN/inf command holds the last)
-            samples.append(step(command) + (act.command_rad,))
+            commands.append(command)
         self._command = command
-        beta, rate, accel, held = zip(*samples)
+        # (β, β̇, β̈) and the finite command in force (a NaN/inf command holds the last)
+        beta, rate, accel, held = (tuple(v) for v in self._act.run(commands))
         self._t_ms = t_ms + self._steps * dt
         out = ActuatorOut(self._t_ms, self._seq, beta, rate, accel, held, dt / 1000.0)
         self._seq += 1

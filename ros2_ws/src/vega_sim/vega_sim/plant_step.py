@@ -34,8 +34,8 @@ from vega_core.errors import BadInput
 
 from vega_bus.records import TruthOut
 
-from vega_model.dynamics import (STATES, NonlinearModel, angle_of_attack, linear_model,
-                                 nonlinear_outputs)
+from vega_model.dynamics import (STATES, NonlinearModel, alpha_and_q_alpha, angle_of_attack,
+                                 linear_model)
 from vega_model.parameters import ModelContext, ModelParameters
 from vega_model.vehicle_data import VehicleData
 from vega_model.wind import GustProfile, ProfileChange, WindModel, turbulence_params
@@ -156,11 +156,14 @@ class ParameterTrack:
         self.frame_ms, self.refresh_ms, self.dt_ms = int(frame_ms), int(refresh_ms), int(dt_ms)
         self.deviations = dict(deviations or {})
         n = (t_end_ms - t_start_ms + frame_ms) // refresh_ms
-        self.params: tuple[ModelParameters, ...] = tuple(
-            parameters_at(context, t_start_ms + refresh_ms * e, self.deviations)
-            for e in range(n))
+        # parameters_at(context, t_start + refresh·e, deviations) for every e, on arrays
+        # (ModelContext.parameters_at_times: the same numbers)
+        self.params: tuple[ModelParameters, ...] = tuple(context.parameters_at_times(
+            (t_start_ms + refresh_ms * np.arange(n, dtype=np.int64)) / 1000.0,
+            self.deviations))
         self._linear: LinearFrames | None = None
         self._nonlinear: list[NonlinearModel | None] = [None] * n
+        self._kernel: tuple | None = None
 
     @property
     def n_frames(self) -> int:
@@ -174,6 +177,17 @@ class ParameterTrack:
     def at_ms(self, t_ms: int) -> ModelParameters:
         """Parameters in force at ``t_ms``."""
         return self.params[(t_ms - self.t_start_ms) // self.refresh_ms]
+
+    def kernel_inputs(self) -> tuple:
+        """(constants of every entry, Mach tables) for the compiled nonlinear plant
+        (:func:`vega_model.nonlinear_kernel.rk4_frame`; built once, then shared)."""
+        if self._kernel is None:
+            from vega_model.nonlinear_kernel import entry_constants, mach_tables
+
+            consts = np.array([entry_constants(p) for p in self.params], dtype=float)
+            consts.setflags(write=False)
+            self._kernel = (consts, mach_tables(self.params[0]))
+        return self._kernel
 
     def nonlinear_model(self, e: int) -> NonlinearModel:
         """The nonlinear model of parameter entry ``e`` (built on first use, then shared)."""
@@ -330,21 +344,25 @@ class PlantWind:
         """Advance ``n_steps`` physics steps from ``t_ms``; return v_w held over each [m/s]."""
         track = self._track
         params, t0, refresh, dt = track.params, track.t_start_ms, track.refresh_ms, self._dt_ms
-        step = self._model.step if self._active else None
         out = []
-        for k in range(n_steps):
-            t = t_ms + k * dt
-            e = (t - t0) // refresh
-            if step is not None:
+        if self._active:          # WindModel.steps over each run of steps with one entry
+            k = 0
+            while k < n_steps:
+                e = (t_ms + k * dt - t0) // refresh
+                j = min(n_steps, (t0 + (e + 1) * refresh - t_ms + dt - 1) // dt)
                 p = params[e]
-                w = step(t / 1000.0, p.h_m, p.v_mps)
-            else:
-                w = 0.0
-            if self._thesis:
-                x = self._state
-                w += THESIS_DRYDEN_WEIGHT * x
-                self._state = self._a[e] * x + self._g[e]
-            out.append(w)
+                out += self._model.steps([(t_ms + i * dt) / 1000.0 for i in range(k, j)],
+                                         p.h_m, p.v_mps)
+                k = j
+        else:
+            out = [0.0] * n_steps
+        if not self._thesis:
+            return out
+        for k in range(n_steps):
+            e = (t_ms + k * dt - t0) // refresh
+            x = self._state
+            out[k] += THESIS_DRYDEN_WEIGHT * x
+            self._state = self._a[e] * x + self._g[e]
         return out
 
 
@@ -359,7 +377,9 @@ class PlantStep:
         The wind source (stepped here, once per physics step).
     model
         ``"linear"`` (exact ZOH of the frozen-time linear model per step) or ``"nonlinear"``
-        (:class:`vega_model.dynamics.NonlinearModel`, classical RK4 per step).
+        (:class:`vega_model.dynamics.NonlinearModel`, classical RK4 per step, integrated by
+        its compiled twin :func:`vega_model.nonlinear_kernel.rk4_frame`: the same numbers bit
+        for bit, tests/model/test_nonlinear_kernel.py).
     x0
         Initial state in :data:`vega_model.dynamics.STATES` order.
     beta0_rad
@@ -390,6 +410,14 @@ class PlantStep:
         self._t_ms = track.t_start_ms
         self._seq = 0
         self._linear = track.linear_frames() if model == "linear" else None
+        if self._linear is None:
+            # compiled RK4 frame, bit-identical to NonlinearModel.rk4_step (imported here:
+            # numba costs the other nodes' start-up nothing)
+            from vega_model.nonlinear_kernel import rk4_frame
+
+            consts, tables = track.kernel_inputs()
+            self._rk4_frame, self._kernel_consts, self._kernel_tables = (
+                rk4_frame, (consts,), tuple(tables))
         self._winds = self._draw_winds()
         self._out = self._truth()
 
@@ -443,17 +471,16 @@ class PlantStep:
             self._x = self._linear.H[f] @ np.array(xu)
         else:
             track = self.track
-            model_at, t0, refresh, dt_ms = (track.nonlinear_model, track.t_start_ms,
-                                            track.refresh_ms, track.dt_ms)
-            h = self._dt_s
-            x = tuple(self._x.tolist())
-            t = self._t_ms
-            for k in range(steps):
-                b1, r1 = float(deflection_samples_rad[k]), float(rate_samples_radps[k])
-                u = (0.5 * (b0 + b1), (r1 - r0) * inv_dt, winds[k], 0.5 * (r0 + r1))
-                b0, r0 = b1, r1
-                x = model_at((t + k * dt_ms - t0) // refresh).rk4_step(x, u, h)
-            self._x = np.array(x)
+            x = self._x.copy()
+            b0 = float(deflection_samples_rad[-1])
+            r0 = float(rate_samples_radps[-1])
+            self._rk4_frame(x, *self._kernel_consts, *self._kernel_tables,
+                            np.asarray(deflection_samples_rad, dtype=float),
+                            np.asarray(rate_samples_radps, dtype=float),
+                            np.asarray(winds, dtype=float), self._beta, self._rate, inv_dt,
+                            self._dt_s, self._t_ms, track.t_start_ms, track.refresh_ms,
+                            track.dt_ms)
+            self._x = x
         self._beta, self._rate = b0, r0
         self._t_ms += self.track.frame_ms
         self._seq += 1
@@ -467,11 +494,11 @@ class PlantStep:
         p = self.track.params[e]
         w = self._winds[0]
         s = self._x.tolist()
-        alpha = angle_of_attack(p, s, w)
         if self._linear is not None:
+            alpha = angle_of_attack(p, s, w)
             q_alpha = float(self._linear.q_alpha_x[e] @ self._x) + float(
                 self._linear.q_alpha_wind[e]) * w
         else:
-            q_alpha = float(nonlinear_outputs(p, s, (0.0, 0.0, w))[0])
+            alpha, q_alpha = alpha_and_q_alpha(p, s, w)
         return TruthOut(t, self._seq, s[0], s[1], s[2], s[3], alpha, q_alpha, p.q_pa, p.mach,
                         p.v_mps, p.h_m, w, (s[4], s[5]), (s[6], s[7]))
