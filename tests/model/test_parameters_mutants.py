@@ -108,3 +108,19 @@ def test_field_check_accepts_the_shipped_units_and_refuses_an_unknown_name(monke
     monkeypatch.setitem(params_mod.PARAMETER_UNITS, "no_such_field", "m")
     with pytest.raises(AssertionError, match="no_such_field"):
         params_mod._check_fields_cover_units()
+
+
+def test_injected_flight_conditions_are_the_ones_used(tmp_path):
+    """A table cut after its first 101 data rows ends earlier than the shipped one: a context
+    given it reports that end time, and clamps to it (the shipped table ends later)."""
+    lines = open(params_mod.__file__.rsplit("/", 1)[0] + "/data/flight_conditions.csv").readlines()
+    header = [ln for ln in lines if ln.startswith("#")]
+    data = [ln for ln in lines if not ln.startswith("#")]
+    cut = tmp_path / "fc.csv"
+    cut.write_text("".join(header + data[:102]))      # column names + 101 rows
+    short = FlightConditions.load(cut)
+    t_end = float(data[101].split(",", 1)[0])
+    ctx = ModelContext(conditions=short)
+    assert ctx.conditions is short
+    assert ctx.time_range_s[1] == t_end < ModelContext().time_range_s[1]
+    assert ctx.parameters(t_end + 10.0).v_mps == ctx.parameters(t_end).v_mps
