@@ -108,13 +108,15 @@ test: setup lint
 sil: setup
 	$(VENV)/bin/vega sil run --out $(ROOT)/bags $(SIL_ARGS)
 
-# MODULE: one module of tools/mutation/targets.toml (default: all, ~2 min each, one worker);
-# table: bench/results/mutation.md, survivors: bench/results/mutation/<module>.json
+# MODULE: one module of tools/mutation/targets.toml (default: all, one after the other, one
+# worker, then the five seeded bugs of issue 15); table: bench/results/mutation.md, survivors:
+# bench/results/mutation/<module>.json; docs/TESTING.md
 MODULE ?=
 .PHONY: mutation
 mutation: setup
 	cd $(ROOT) && OPENBLAS_NUM_THREADS=1 $(VENV)/bin/vega-env python tools/mutation/run.py \
 	  $(if $(MODULE),--module $(MODULE))
+	$(if $(MODULE),,cd $(ROOT) && $(VENV)/bin/vega-env python tools/mutation/seeded_bugs.py)
 
 clean:
 	rm -rf $(WS)/build $(WS)/install $(WS)/log $(ROOT)/.pytest_cache $(ROOT)/.ruff_cache
