@@ -420,35 +420,62 @@ evaluation costs 11 design sets, ≈ 0.45 s on one core; 18 generations of 112 m
 the requirements were all met from the 3rd generation on)."""
 
 
-def tail_cost(x, sets: Sequence[DesignSet]) -> float:
+TAIL_TRANSITION_FRACTIONS = (0.25, 0.5, 0.75)
+"""Where between the last grid point before :data:`TAIL_OFF_HOLD_S` and the hold the flown,
+interpolated controller is part of the tail-off cost (the runtime interpolates between two
+possibly very different controllers there: measured, without it the flown loop at 84.5 s was
+unstable)."""
+
+
+def tail_cost(x, sets: Sequence[DesignSet], transition=None) -> float:
     """Cost of one held controller over several flight times: the worst time's cost plus a
-    tenth of the mean (assumption: the worst time decides, the mean breaks ties)."""
+    tenth of the mean (assumption: the worst time decides, the mean breaks ties). With
+    ``transition = (context, (t_left, x_left), t_hold, transition_sets)`` the flown controller
+    interpolated between the left grid point and the held one counts at the times of
+    ``transition_sets`` too."""
     costs = [evaluate(x, ds) for ds in sets]
+    if transition is not None:
+        context, left, t_hold, tsets = transition
+        costs += [evaluate_discrete(flown_between(context, left, (t_hold, x), ds.t_s), ds)
+                  for ds in tsets]
     return max(costs) + 0.1 * sum(costs) / len(costs)
 
 
 def tune_tail(context, x0, seed: int = 4000, maxiter: int = TAIL_MAXITER,
               popsize: int = TAIL_POPSIZE, polish_maxfev: int = 1500,
-              times_s: Sequence[float] = TAIL_DESIGN_TIMES_S,
+              times_s: Sequence[float] = TAIL_DESIGN_TIMES_S, left=None,
               progress: Callable[[str], None] | None = None):
     """Tune the one controller held from :data:`TAIL_OFF_HOLD_S` to burn-out on the design
     sets of ``times_s`` jointly (:func:`tail_cost`), from ``x0`` (e.g. the parameters tuned at
-    :data:`TAIL_OFF_HOLD_S` alone). Returns (x, cost, {time: detail})."""
+    :data:`TAIL_OFF_HOLD_S` alone); with ``left = (t, x)``, the last grid point before the
+    hold, the interpolated transition to it counts too (:data:`TAIL_TRANSITION_FRACTIONS`).
+    Returns (x, cost, {time: detail})."""
     from vega_model.uncertainty import UncertaintySet
 
     uset = UncertaintySet.from_vehicle(context.vehicle)
     sets = [design_set(context, float(t), uset) for t in times_s]
+    transition = None
+    if left is not None:
+        t_left, t_hold = float(left[0]), TAIL_OFF_HOLD_S
+        tsets = [design_set(context, t_left + f * (t_hold - t_left), uset)
+                 for f in TAIL_TRANSITION_FRACTIONS]
+        transition = (context, (t_left, np.asarray(left[1], dtype=float)), t_hold, tsets)
     generation = [0]
 
     def report(xk, convergence=None):
         generation[0] += 1
         if progress is not None:
             progress(f"tail-off joint tuning: generation {generation[0]}/{maxiter}, cost "
-                     f"{tail_cost(xk, sets):.4f}")
+                     f"{tail_cost(xk, sets, transition):.4f}")
 
-    x = _search(tail_cost, (sets,), x0, seed, maxiter, popsize, polish_maxfev, report)
+    x = _search(tail_cost, (sets, transition), x0, seed, maxiter, popsize, polish_maxfev,
+                report)
     details = {float(ds.t_s): evaluate(x, ds, detail=True)[1] for ds in sets}
-    return x, tail_cost(x, sets), details
+    if transition is not None:
+        for ds in transition[3]:
+            K = flown_between(context, transition[1], (transition[2], x), ds.t_s)
+            details[float(ds.t_s)] = evaluate_discrete(K, ds, detail=True)[1]
+    return x, tail_cost(x, sets, transition), details
 
 
 # ---------------------------------------------------------------------------- whole flight
@@ -670,15 +697,17 @@ def hold_tail(context, done: Mapping[float, tuple], seed: int = 4000,
               progress: Callable[[str], None] | None = None, **tail_options) -> dict:
     """Step 5 of :func:`design_flight`: the controller of every grid time from
     :data:`TAIL_OFF_HOLD_S` on is one controller, tuned jointly over the tail-off
-    (:func:`tune_tail`) from the better of the parameters at :data:`TAIL_OFF_HOLD_S` and the
-    held ones of ``done`` at the last grid time; ``done`` maps time → (x, detail, how).
+    (:func:`tune_tail`) from the parameters at :data:`TAIL_OFF_HOLD_S`, the flown transition
+    from the last grid point before it included; ``done`` maps time → (x, detail, how).
     Returns the updated copy."""
     from vega_model.uncertainty import UncertaintySet
 
     uset = UncertaintySet.from_vehicle(context.vehicle)
     done = dict(done)
-    x, _, _ = tune_tail(context, done[TAIL_OFF_HOLD_S][0], seed=seed, progress=progress,
-                        **tail_options)
+    before = [t for t in done if t < TAIL_OFF_HOLD_S]
+    left = (max(before), done[max(before)][0]) if before else None
+    x, _, _ = tune_tail(context, done[TAIL_OFF_HOLD_S][0], seed=seed, left=left,
+                        progress=progress, **tail_options)
     for t in [t for t in done if t >= TAIL_OFF_HOLD_S]:
         detail = evaluate(x, design_set(context, t, uset), detail=True)[1]
         done[t] = (x, detail, f"held from {TAIL_OFF_HOLD_S:g} s (tail-off, tuned jointly)")

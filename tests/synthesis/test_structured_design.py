@@ -223,6 +223,25 @@ def test_retune_tail_holds_one_controller_and_keeps_the_rest(context):
     assert S.tail_cost(design.x[tail][0], sets) <= S.tail_cost(x86, sets) + 1e-12
 
 
+def test_tail_tuning_counts_the_flown_transition_from_the_left_grid_point(context):
+    from vega_gnc.controller_table import default_table_path, load_controller_table
+    from vega_model.uncertainty import UncertaintySet
+
+    meta = load_controller_table(default_table_path()).metadata
+    by = dict(zip(meta["grid_times_s"], meta["parameters_per_grid_time"]))
+    x, cost, details = S.tune_tail(context, by[86.0], maxiter=1, popsize=2, polish_maxfev=5,
+                                   times_s=(90.0,), left=(84.0, by[84.0]))
+    assert sorted(details) == [84.5, 85.0, 85.5, 90.0]
+    uset = UncertaintySet.from_vehicle(context.vehicle)
+    sets = [S.design_set(context, 90.0, uset)]
+    tsets = [S.design_set(context, t, uset) for t in (84.5, 85.0, 85.5)]
+    # the transition's loops are those of the controller the runtime flies there
+    K = S.flown_between(context, (84.0, np.array(by[84.0])), (86.0, x), 85.0)
+    assert details[85.0]["pm_deg"] == S.evaluate_discrete(K, tsets[1], detail=True)[1]["pm_deg"]
+    full = S.tail_cost(x, sets, (context, (84.0, np.array(by[84.0])), 86.0, tsets))
+    assert cost == pytest.approx(full, rel=1e-12)
+
+
 def test_loader_rules_for_structured_tables(context, tmp_path):
     """NaN γ only in a structured table; a structured table with a γ, an LPV table without
     one and an unknown design are refused in one line."""
