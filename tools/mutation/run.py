@@ -122,6 +122,9 @@ def _stage(name, target, tree):
         'pytest_add_cli_args = ["-p", "no:cacheprovider", "-p", "no:randomly", "-q"]\n'
         f"do_not_mutate_patterns = {_toml_list(DO_NOT_MUTATE_PATTERNS)}\n"
         "use_git_change_detection = false\n"
+        # a fork server: wall-clock timeouts (the fork mode has CPU-time limits only, and a
+        # mutant process blocked on a lock inherited through fork() then waits forever)
+        "process_isolation = \"forkserver\"\n"
         f"timeout_constant = {float(target.get('timeout_s', TIMEOUT_S))}\n"
         "\n[tool.pytest.ini_options]\n"
         'testpaths = ["tests"]\npythonpath = ["tests", "tests/sil"]\n')
