@@ -26,7 +26,9 @@ One run measures, in this order (issue 12 item 5):
    (LocalCluster), wall time of the whole command (process and cluster start-up, results and
    plots included) and the runner's own flights per second (its last progress line: from the
    cluster's start to the last flight), their 2/1 ratios (target ≥ 1.8×), × real time per
-   worker.
+   worker, and the CPU seconds of the command and all its processes (scheduler, nannies,
+   workers: equal CPU for 1 and 2 workers means the runner adds no serial work, so a machine
+   with two free cores gets the scaling the CPU allows).
 
 CPU seconds are the load-independent figure on a shared 2-core machine; wall seconds depend on
 what else runs. Figures in docs/MONTE_CARLO.md "Speed".
@@ -36,6 +38,7 @@ import argparse
 import json
 import os
 import re
+import resource
 import subprocess
 import sys
 import tempfile
@@ -163,12 +166,15 @@ def _scaling(runs: int) -> None:
     with tempfile.TemporaryDirectory(prefix="bench_inprocess_mc_") as scratch:
         for workers in (1, 2):
             out = Path(scratch) / f"w{workers}"
+            c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
             t0 = time.perf_counter()
             done = subprocess.run([sys.executable, "-m", "vega_cli.cli", "mc", "run",
                                    "--scenario", "nominal", "--runs", str(runs), "--seed", "0",
                                    "--workers", str(workers), "--out", str(out)],
                                   capture_output=True, text=True, check=False)
             wall = time.perf_counter() - t0
+            c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu = (c1.ru_utime + c1.ru_stime) - (c0.ru_utime + c0.ru_stime)
             if done.returncode not in (0, 1):           # 1: some flight failed its verdict
                 sys.exit(f"bench_inprocess: vega mc run failed:\n{done.stderr[-2000:]}")
             rates[workers] = runs / wall
@@ -180,7 +186,8 @@ def _scaling(runs: int) -> None:
                   f"command: start-up, cluster, flights, results, plots) = "
                   f"{rates[workers]:.2f} flights/s, {rates[workers] * 100.0 / workers:.0f}x "
                   f"real time per worker; flying alone {flying[workers]:.2f} flights/s = "
-                  f"{flying[workers] * 100.0 / workers:.0f}x real time per worker")
+                  f"{flying[workers] * 100.0 / workers:.0f}x real time per worker; CPU of "
+                  f"the command and its processes {cpu:.1f} s ({cpu / runs:.2f} s per flight)")
     print(f"scaling 1 -> 2 workers: whole command {rates[2] / rates[1]:.2f}x, flying "
           f"{flying[2] / flying[1]:.2f}x (target >= 1.8x); load average now "
           f"{os.getloadavg()[0]:.1f}")
