@@ -68,3 +68,19 @@ def test_frozen_sweep_reports_times_velocities_and_rate(frozen_result):
     np.testing.assert_allclose(sweep.rho, v, rtol=1e-15)
     assert sweep.rate_mps2 == 20.0 and isinstance(sweep.rate_mps2, float)
     assert np.all(sweep.max_real_eig < 0) and np.all(np.isfinite(sweep.hinf))
+
+
+def test_frozen_sweep_uses_the_given_context(frozen_result, tmp_path):
+    """A context whose bending data start at 20 s (not 0 s) has other mode frequencies at
+    40 s, so its frozen loop, and its H∞ norm, differ from the default context's."""
+    from vega_model.parameters import ModelContext
+    from vega_model.vehicle_data import default_vehicle_path, load_vehicle_data
+
+    text = default_vehicle_path().read_text()
+    path = tmp_path / "vehicle.yaml"
+    path.write_text(text.replace("t_start_s: {value: 0.0,", "t_start_s: {value: 20.0,", 1))
+    other = ModelContext(vehicle=load_vehicle_data(path))
+    assert other.parameters(40.0).f1_hz != default_context().parameters(40.0).f1_hz
+    mine = frozen_point_sweep(frozen_result, SHIPPED, other, [40.0], 20.0)
+    default = frozen_point_sweep(frozen_result, SHIPPED, default_context(), [40.0], 20.0)
+    assert abs(mine.hinf[0] - default.hinf[0]) > 1e-9 * default.hinf[0]
