@@ -15,7 +15,8 @@ Used by ``Shell`` (``ros2_ws/src/vega_bus/vega_bus/shell.py``):
   timeout is no error), ``get_ready_entities("subscription")`` (a list of handle pointers);
 * ``Context.handle``, ``Node.subscriptions``; of each subscription ``handle`` (with
   ``pointer`` and ``take_message(msg_type, raw)`` → ``(message, info)`` or ``None`` once
-  empty), ``msg_type``, ``raw``, ``callback``.
+  empty; ``info["publication_sequence_number"]`` numbers a writer's messages 1, 2, 3, …),
+  ``msg_type``, ``raw``, ``callback``.
 
 Whether the public API would do as well: bench/bench_rclpy_wait.py.
 """
@@ -212,6 +213,10 @@ def test_a_published_message_is_taken_through_the_wait_set(ros_node):
         if not (isinstance(got, tuple) and len(got) == 2 and isinstance(got[0], UInt32)):
             _broken("subscription.handle.take_message(msg_type, raw)",
                     f"no longer returns (message, info) (got {got!r})")
+        # the shell's StreamCheck: the writer's publication sequence number, 1, 2, 3, …
+        if got[1].get("publication_sequence_number") != len(received) + 1:
+            _broken("subscription.handle.take_message(msg_type, raw)",
+                    f"info no longer carries the publication sequence number (got {got[1]!r})")
         callback(got[0])
     assert [m.data for m in received] == sent
     assert _call("subscription.handle.take_message(msg_type, raw)", take, msg_type, raw) is None, (

@@ -279,7 +279,9 @@ def _signal_mid_flight(args, victim: str, at_sim_s: float, sig) -> tuple[int, st
             if "start barrier complete" in line:
                 break
         nodes = children_of(proc.pid)
-        (pid,) = [p for p, argv in nodes.items() if argv[1].endswith(f"/{victim}")]
+        found = [p for p, argv in nodes.items() if argv[1].endswith(f"/{victim}")]
+        assert len(found) == 1, "".join(stderr)
+        (pid,) = found
         assert wait_for_sim_time(at_sim_s, still_running=lambda: proc.poll() is None)
         os.kill(pid, sig)
         stderr.append(proc.communicate(timeout=180)[1])

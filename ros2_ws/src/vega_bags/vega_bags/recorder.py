@@ -211,8 +211,8 @@ def _recorder(shell: Shell) -> None:
             profile = qos.clock_qos() if topic is topics.CLOCK else qos.data_qos()
             callback = _writer_callback(reorder, topic.name, topic.type_name, counts,
                                         progress if topic is topics.TRUTH else None)
-            node.create_subscription(topics.message_class(topic.type_name), topic.name,
-                                     shell.guard(callback), profile, raw=True)
+            shell.checked_subscription(topics.message_class(topic.type_name), topic.name,
+                                       callback, profile, raw=True)
         shell.barrier(participants, [progress], barrier_timeout)
         shell.batch_s = RECORDER_BATCH_S
         shell.wait_until(lambda: counts == expected,

@@ -440,11 +440,62 @@ def _set_parent_death_signal():
         pass
 
 
-class ReadyWatcher:
-    """Subscribes to the start barrier's ``/vega/ready`` and collects the names announced.
+_RUN_TOPICS = (*topics.ALL_TOPICS, topics.RECORDED, topics.RUN, topics.READY)
+_FASTDDS_VENDOR = b"\x01\x0f"   # eProsima's RTPS vendor id, the first bytes of every GUID
+_UNKNOWN_NODE = "_NODE_NAME_UNKNOWN_"   # rmw's node name of an endpoint not yet attributed
+NAME_WAIT_S = 5.0
+"""How long the watch waits for the node name of a foreign endpoint the graph knows only by
+its GID so far (the name comes on ros_discovery_info, usually within milliseconds) [s]."""
+FOREIGN_POLL_S = 0.25
+"""Period of the supervisor's watch for foreign publishers on the run's topics [s]."""
 
-    An own rclpy context, so that it is shut down completely (:meth:`close`) once the barrier
-    has completed: the orchestrator takes no part in the flight.
+
+def foreign_publisher(endpoints_by_topic, own_pids: Mapping[str, int],
+                      participants: Sequence[str]) -> str | None:
+    """The first publisher on a run topic that is not one of the run's own nodes, as one line
+    naming it (node name and GID), or None.
+
+    Parameters
+    ----------
+    endpoints_by_topic
+        Topic name → its publishers' ``TopicEndpointInfo`` (rclpy's
+        ``Node.get_publishers_info_by_topic``).
+    own_pids
+        Node name → process id of the run's node processes.
+    participants
+        The run's participants (any of them may publish on ``/vega/ready``).
+
+    A publisher is the run's own if its node name is the topic's publisher
+    (:mod:`vega_bus.topics`) and its GID is a Fast DDS GUID whose process-id field (bytes
+    4–5, little-endian: the low 16 bits of the pid, as Fast DDS builds its GUID prefix) is
+    that node's process. Without DDS-Security the GID is what the sender claims: this finds
+    an ordinary ROS 2 process on the bus, not a forger of RTPS packets (docs/SECURITY.md).
+    """
+    own = {pid & 0xFFFF: name for name, pid in own_pids.items()}
+    for topic in _RUN_TOPICS:
+        allowed = tuple(participants) if topic.publisher == "*" else (topic.publisher,)
+        for info in endpoints_by_topic.get(topic.name, ()):
+            gid = bytes(info.endpoint_gid)
+            name = info.node_name
+            owner = own.get(int.from_bytes(gid[4:6], "little")) \
+                if gid[:2] == _FASTDDS_VENDOR else None
+            if owner is not None and owner in allowed and name in (owner, _UNKNOWN_NODE):
+                # the run's node (its name may not be known yet: the graph learns endpoints
+                # before the node names, which come on ros_discovery_info)
+                continue
+            namespace = info.node_namespace.rstrip("/")
+            return (f"foreign publisher on {topic.name}: node '{namespace}/{name}' (GID "
+                    f"{gid.hex('.')}) is not one of the run's nodes; nothing but the run may "
+                    f"publish on its topics (docs/SECURITY.md)")
+    return None
+
+
+class ReadyWatcher:
+    """Subscribes to the start barrier's ``/vega/ready`` and collects the names announced;
+    watches the graph for foreign publishers on the run's topics (:meth:`foreign`).
+
+    An own rclpy context, shut down completely by :meth:`close` at the end of the run; it
+    subscribes to nothing but ``/vega/ready`` and publishes nothing on the run's topics.
     """
 
     def __init__(self):
@@ -468,6 +519,20 @@ class ReadyWatcher:
     def spin_once(self, timeout_s: float):
         """Handle what arrived, waiting at most ``timeout_s``."""
         self._executor.spin_once(timeout_sec=timeout_s)
+
+    def foreign(self, own_pids: Mapping[str, int], participants: Sequence[str]) -> str | None:
+        """:func:`foreign_publisher` on the graph as this participant sees it now."""
+        if self._node is None:
+            return None
+        deadline = time.monotonic() + NAME_WAIT_S
+        while True:
+            found = foreign_publisher(
+                {t.name: self._node.get_publishers_info_by_topic(t.name) for t in _RUN_TOPICS},
+                own_pids, participants)
+            # the graph learns an endpoint before its node's name: give the name time to come
+            if found is None or _UNKNOWN_NODE not in found or time.monotonic() > deadline:
+                return found
+            time.sleep(0.05)
 
     def close(self):
         """Destroy the node and shut the context down (idempotent)."""
@@ -665,7 +730,13 @@ class Supervisor:
         if watcher is None:  # not watched: the flight phase reports every failure
             return None
         deadline = time.monotonic() + self.barrier_timeout_s + _BARRIER_MARGIN_S
+        next_poll = time.monotonic()
         while True:
+            if time.monotonic() >= next_poll:
+                next_poll = time.monotonic() + FOREIGN_POLL_S
+                foreign = self._foreign(watcher)
+                if foreign is not None:
+                    return RunOutcome("failed", foreign)
             failed = self._failed()
             missing = [name for name in self.participants if name not in watcher.ready]
             if failed is not None:
@@ -685,15 +756,35 @@ class Supervisor:
                               f"not ready: {', '.join(missing)}")
             watcher.spin_once(0.05)
 
-    def wait_flight(self) -> RunOutcome:
-        """Wait until every node has ended; a failure (non-zero status) ends the wait."""
+    def _foreign(self, watcher: ReadyWatcher | None) -> str | None:
+        """A foreign publisher on the run's topics (:func:`foreign_publisher`), or None."""
+        if watcher is None:
+            return None
+        own = {p.name: p.popen.pid for p in self.processes}
+        return watcher.foreign(own, self.participants)
+
+    def wait_flight(self, watcher: ReadyWatcher | None = None) -> RunOutcome:
+        """Wait until every node has ended; a failure (non-zero status), or a foreign
+        publisher on the run's topics (with ``watcher``), ends the wait."""
         first_end = None
         while True:
+            foreign = self._foreign(watcher)
+            if foreign is not None:
+                return RunOutcome("failed", foreign)
             failed = self._failed()
             if failed is not None:
                 self._await_stall_chain(failed)
+                message = self._failure_message(failed, "during the flight")
+                foreign = self._foreign(watcher)
+                # a node that refused a foreign message: the watch's own graph may learn the
+                # publisher a moment later than the node's subscription matched it
+                deadline = time.monotonic() + NAME_WAIT_S
+                while (foreign is None and "refused a message on" in message
+                       and time.monotonic() < deadline):
+                    time.sleep(0.05)
+                    foreign = self._foreign(watcher)
                 return RunOutcome("bad_input" if failed.returncode == 2 else "failed",
-                                  self._failure_message(failed, "during the flight"))
+                                  message if foreign is None else f"{foreign}; {message}")
             early = self._ended_early()
             if early is not None:
                 return RunOutcome("failed", early)
@@ -707,7 +798,7 @@ class Supervisor:
                 return RunOutcome(
                     "failed", f"node(s) {', '.join(p.name for p in running)} still running "
                               f"{FINISH_GRACE_S:g} s after the others ended")
-            self._wait_any(1.0)
+            self._wait_any(FOREIGN_POLL_S if watcher is not None else 1.0)
 
     # -- stopping
     def stop(self, grace_s: float | None = None):
@@ -765,14 +856,11 @@ class Supervisor:
             if self.watch_barrier:
                 watcher = ReadyWatcher()
             outcome = self.wait_barrier(watcher)
-            if watcher is not None:
-                watcher.close()
-                watcher = None
             if outcome is None:
                 t_barrier = time.monotonic()
                 self.progress(f"start barrier complete after {t_barrier - t_start:.1f} s: "
                               f"{', '.join(self.participants)}; flying")
-                outcome = self.wait_flight()
+                outcome = self.wait_flight(watcher)
         except (KeyboardInterrupt, _Terminated) as exc:
             what = "Ctrl-C" if isinstance(exc, KeyboardInterrupt) else str(exc)
             outcome = RunOutcome("interrupted", f"interrupted ({what}): stopped every node")

@@ -5,8 +5,10 @@ One source of truth for the environment rules of ``docs/ENVIRONMENT_SETUP.md``:
 * discovery never leaves the machine: ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, with
   ``ROS_LOCALHOST_ONLY`` (deprecated in Jazzy) and ``ROS_STATIC_PEERS`` (extra peers, possibly
   remote) removed;
-* every run gets its own ``ROS_DOMAIN_ID`` in 1..100 unless the caller chose one; 101 is
-  reserved for nodes started by hand (``vega node``), which must all meet on one id;
+* every run gets its own ``ROS_DOMAIN_ID`` in 1..100 unless the caller chose one: the first
+  id, from a per-user counter on, on which no DDS participant of any user lives on this host
+  (:func:`domain_in_use` probes the RTPS ports); 101 is reserved for nodes started by hand
+  (``vega node``), which must all meet on one id;
 * the library path of the ROS 2 wheels stays consistent with the wheels' bootstrap guard, and
   the ament index of the virtual environment stays on ``AMENT_PREFIX_PATH``.
 
@@ -18,8 +20,10 @@ Run as ``python -m vega_bringup.rosenv CMD [ARGS...]`` it executes ``CMD`` in th
 (this is what ``.venv/bin/vega-env`` does).
 """
 
+import errno
 import fcntl
 import os
+import socket
 import sys
 import tempfile
 from pathlib import Path
@@ -33,7 +37,10 @@ __all__ = [
     "DOMAIN_ID_MAX",
     "HAND_START_DOMAIN_ID",
     "DomainIdError",
+    "PROBED_PARTICIPANTS",
+    "domain_in_use",
     "pick_domain_id",
+    "refuse_busy_domain",
     "ros_environment",
     "configure_current_process",
 ]
@@ -58,13 +65,44 @@ class DomainIdError(BadArgument):
     """A ROS_DOMAIN_ID given by the caller is not an integer in 1..101."""
 
 
-def pick_domain_id(state_file=None):
-    """Pick a ROS_DOMAIN_ID for a new run.
+# RTPS 2.x well-known ports (OMG DDSI-RTPS 2.5, 9.6.1.1; every DDS vendor, Fast DDS included):
+# the unicast metatraffic (discovery) port of participant i on domain d is
+# PB + DG·d + d1 + PG·i.
+_RTPS_PB, _RTPS_DG, _RTPS_PG, _RTPS_D1 = 7400, 250, 2, 10
+PROBED_PARTICIPANTS = 120
+"""Participant indices probed per domain (Fast DDS gives a process the lowest free index;
+120 keeps every probed port of domains 1..100 below Linux's ephemeral range, 32768)."""
 
-    The ids are handed out round robin over 1..100 (101 is :data:`HAND_START_DOMAIN_ID`)
-    from a per-user counter file, advanced
-    under an exclusive lock, so two runs started one after the other (or concurrently) get
-    different ids; an id comes back only after 99 newer picks on this machine.
+
+def domain_in_use(domain_id):
+    """The RTPS participant index of a DDS participant alive on ``domain_id`` on this host, or
+    None if there is none.
+
+    Every RTPS participant binds the unicast discovery port of its index (the RTPS port
+    mapping, whatever its vendor, user or discovery range); this tries to bind each of those
+    ports of the first :data:`PROBED_PARTICIPANTS` indices on 127.0.0.1 (nothing is sent; a
+    participant bound to 0.0.0.0 or 127.0.0.1 makes the bind fail with EADDRINUSE). Takes
+    about a millisecond.
+    """
+    base = _RTPS_PB + _RTPS_DG * int(domain_id) + _RTPS_D1
+    for index in range(PROBED_PARTICIPANTS):
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+            try:
+                probe.bind(("127.0.0.1", base + _RTPS_PG * index))
+            except OSError as exc:
+                if exc.errno == errno.EADDRINUSE:
+                    return index
+                raise
+    return None
+
+
+def pick_domain_id(state_file=None):
+    """Pick a free ROS_DOMAIN_ID for a new run.
+
+    From a per-user counter file (advanced under an exclusive lock, so two runs started one
+    after the other, or concurrently, start from different ids), the ids 1..100 are tried in
+    turn (101 is :data:`HAND_START_DOMAIN_ID`) and the first on which no DDS participant of
+    any user lives on this host (:func:`domain_in_use`) is taken.
 
     Parameters
     ----------
@@ -76,26 +114,52 @@ def pick_domain_id(state_file=None):
     int
         A domain id in ``DOMAIN_ID_MIN..HAND_START_DOMAIN_ID - 1``.
 
+    Raises
+    ------
+    DomainIdError
+        If every id 1..100 has a participant on it.
+
     Notes
     -----
-    If the counter file cannot be used (read-only or missing directory, no locking), the id is
-    derived from the process id instead: ``1 + pid % 100``.
+    If the counter file cannot be used (read-only or missing directory, no locking), the
+    search starts from the process id instead: ``1 + pid % 100``.
     """
     if state_file is None:
         state_file = Path(tempfile.gettempdir()) / f"vega-ros-domain-id.{os.getuid()}"
     span = HAND_START_DOMAIN_ID - DOMAIN_ID_MIN
+
+    def first_free(previous):
+        for step in range(1, span + 1):
+            candidate = DOMAIN_ID_MIN + (previous + step - DOMAIN_ID_MIN) % span
+            if domain_in_use(candidate) is None:
+                return candidate
+        raise DomainIdError(f"no free ROS_DOMAIN_ID: every id in {DOMAIN_ID_MIN}.."
+                            f"{HAND_START_DOMAIN_ID - 1} has a DDS participant on this host")
+
     try:
         with os.fdopen(os.open(state_file, os.O_RDWR | os.O_CREAT, 0o600), "r+") as counter:
             fcntl.flock(counter, fcntl.LOCK_EX)
             text = counter.read().strip()
-            previous = int(text) if text.isdigit() else os.getpid()
-            domain_id = DOMAIN_ID_MIN + (previous + 1 - DOMAIN_ID_MIN) % span
+            domain_id = first_free(int(text) if text.isdigit() else os.getpid())
             counter.seek(0)
             counter.truncate()
             counter.write(f"{domain_id}\n")
     except OSError:
-        return DOMAIN_ID_MIN + os.getpid() % span
+        return first_free(os.getpid())
     return domain_id
+
+
+def refuse_busy_domain(domain_id):
+    """Raise :class:`DomainIdError` (one line) if a DDS participant lives on ``domain_id``:
+    a run must not share its domain (its nodes would take a foreign participant's messages,
+    and two runs on one id mix and destroy each other; docs/SECURITY.md)."""
+    index = domain_in_use(domain_id)
+    if index is not None:
+        port = _RTPS_PB + _RTPS_DG * int(domain_id) + _RTPS_D1 + _RTPS_PG * index
+        raise DomainIdError(
+            f"ROS_DOMAIN_ID={domain_id} is in use: a DDS participant on this host holds its "
+            f"RTPS port {port}; a run needs a domain of its own: unset ROS_DOMAIN_ID to get a "
+            f"free one, or export a free id")
 
 
 def _checked_domain_id(value):

@@ -83,6 +83,50 @@ class SeqCheck:
         self.next += 1
 
 
+NODE_UMASK = 0o077
+"""File-mode creation mask of every node: files and shared-memory segments it creates are
+readable and writable by its user only (Fast DDS creates its segments with the mask applied)."""
+
+
+class StreamCheck:
+    """An input topic of the run has one publisher, and its messages come in that publisher's
+    order: a message is refused (:class:`NodeExit` (1), never handed on) if the subscription
+    matches more than one publisher, or if its publication sequence number (rclpy's
+    MessageInfo, set by the sending DDS writer: 1, 2, 3, … per writer) is not the next one.
+    A foreign publisher on the topic (another process on the host, docs/SECURITY.md) so fails
+    the run before any of its messages is used: its own numbers restart at 1, and it is a
+    second matched publisher from its match on. A message taken outside :meth:`Shell.spin_once`
+    (rclpy's executor answering parameter requests before the barrier) carries no
+    MessageInfo and is checked for the publisher count only.
+
+    Call it from the subscription's callback, before using the message."""
+
+    def __init__(self, shell: "Shell", topic: str):
+        self.shell = shell
+        self.topic = topic
+        self.subscription = None
+        self.taken = 0
+
+    def __call__(self) -> None:
+        """Accept the message being handled or raise :class:`NodeExit` (1) naming why not."""
+        subscription = self.subscription
+        if subscription is not None:
+            count = subscription.get_publisher_count()     # public rclpy API
+            if count > 1:
+                raise NodeExit(EXIT_RUN_FAILURE,
+                               f"refused a message on {self.topic}: {count} publishers match "
+                               f"this subscription, the run has one: a foreign publisher is "
+                               f"on the bus")
+        number = self.shell.publication_number
+        expected = self.taken + 1
+        if number is not None and number != expected:
+            raise NodeExit(EXIT_RUN_FAILURE,
+                           f"refused a message on {self.topic}: publication sequence number "
+                           f"{number}, expected {expected}: not the stream of the run's "
+                           f"publisher (a foreign or restarted publisher)")
+        self.taken = expected
+
+
 class Shell:
     """rclpy context, one node and its EventsExecutor, with a signal flag.
 
@@ -104,6 +148,9 @@ class Shell:
         self.failure: NodeExit | None = None
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, self._on_signal)
+        # what the node creates — Fast DDS's shared-memory segments in /dev/shm, the
+        # recorder's bag — is for the user who runs it only (docs/SECURITY.md)
+        os.umask(NODE_UMASK)
         if network.enforce():
             print(f"{name}: ROS_DOMAIN_ID was not set; using {network.HAND_START_DOMAIN_ID}, "
                   f"the default for nodes started by hand", file=sys.stderr)
@@ -119,6 +166,9 @@ class Shell:
         # > 0: wait_until sleeps this long after each wake-up, so that the next one takes many
         # messages at once (for a node off the lockstep's critical path: the recorder)
         self.batch_s = 0.0
+        # publication sequence number of the message being handled (StreamCheck); None
+        # outside spin_once
+        self.publication_number: int | None = None
 
     def _on_signal(self, signum, _frame) -> None:
         self.signal_name = signal.Signals(signum).name
@@ -152,7 +202,9 @@ class Shell:
                         got = take(msg_type, raw)
                         if got is None:
                             break
+                        self.publication_number = got[1]["publication_sequence_number"]
                         callback(got[0])
+                        self.publication_number = None
         if self._parameter_services is not None:
             self._parameter_services.serve()
         if self.failure is not None:
@@ -203,16 +255,34 @@ class Shell:
 
     def inbox(self, msg_type, topic: str, qos) -> list:
         """Subscribe to ``topic``; return the list its messages are appended to, in arrival
-        order, after the sequence check (:class:`SeqCheck`; a gap fails the run)."""
+        order, after the stream check (:class:`StreamCheck`: one publisher, its publication
+        order) and the sequence check (:class:`SeqCheck`; a gap fails the run)."""
         box: list = []
         check = SeqCheck(topic)
+        stream = StreamCheck(self, topic)
 
         def on_message(msg):
+            stream()
             check(msg.seq)
             box.append(msg)
 
-        self.node.create_subscription(msg_type, topic, self.guard(on_message), qos)
+        stream.subscription = self.node.create_subscription(msg_type, topic,
+                                                            self.guard(on_message), qos)
         return box
+
+    def checked_subscription(self, msg_type, topic: str, callback: Callable, qos,
+                             raw: bool = False):
+        """A subscription whose callback runs only for messages that pass the
+        :class:`StreamCheck` (guarded: :meth:`guard`)."""
+        stream = StreamCheck(self, topic)
+
+        def on_message(msg):
+            stream()
+            callback(msg)
+
+        stream.subscription = self.node.create_subscription(
+            msg_type, topic, self.guard(on_message), qos, raw=raw)
+        return stream.subscription
 
     # -------------------------------------------------------------------- parameters
     def param(self, name: str) -> Any:
@@ -346,8 +416,9 @@ class RecorderProgress:
         self.count = 0
         self._sub = None
         if "recorder" in participants:
-            self._sub = shell.node.create_subscription(UInt32, RECORDED.name, self._on_report,
-                                                       data_qos())
+            # stream-checked: a forged report could let the plant run ahead of the recorder
+            self._sub = shell.checked_subscription(UInt32, RECORDED.name, self._on_report,
+                                                   data_qos())
 
     def _on_report(self, msg) -> None:
         self.count = max(self.count, int(msg.data))

@@ -211,8 +211,7 @@ def _actuator(shell: Shell) -> None:
         act.receive(cmd)
         received[0] += 1
 
-    node.create_subscription(TvcCommand, topics.TVC_CMD.name, shell.guard(on_command),
-                             qos.data_qos())
+    shell.checked_subscription(TvcCommand, topics.TVC_CMD.name, on_command, qos.data_qos())
     recorded = shell.recorder_progress(participants)
     shell.barrier(participants, [pub], barrier_timeout)
 

@@ -69,6 +69,9 @@ def _run(args):
                     realtime=args.realtime, table=args.table, run_id=args.run_id,
                     domain_id=args.ros_domain_id)
     _check_table_loops(plan)
+    if not args.dry_run:
+        # the run's domain must hold no participant but its own (picked free, or exported)
+        rosenv.refuse_busy_domain(plan.domain_id)
     write_run_files(plan)
     if args.dry_run:
         for line in plan.lines:
