@@ -189,7 +189,30 @@ def test_a_flipped_bit_is_found_by_the_chunk_crc(bag, tmp_path, capsys):
     data[pos + 9 + length - 3] ^= 0x10
     mcap.write_bytes(bytes(data))
     assert cli.main(["check", str(damaged)]) == 2
-    assert "checksum mismatch" in capsys.readouterr().err
+    assert "data section CRC" in capsys.readouterr().err       # the file's CRC finds it first
     (damaged / "metadata.yaml").unlink()
     assert cli.main(["bag", "repair", str(damaged)]) == 2
     assert "fail their CRC-32" in capsys.readouterr().err
+
+
+def test_data_and_summary_crcs_are_written_and_checked(bag, tmp_path, capsys):
+    """Issue 11 item 6: the MCAP DataEnd and Footer records carry the data-section and
+    summary CRC-32 (rosbags writes 0, "not computed"); a flipped bit in the summary (which no
+    chunk CRC covers) makes `vega check` refuse the bag in one line."""
+    import struct
+
+    mcap = next(bag.glob("*.mcap"))
+    data = mcap.read_bytes()
+    end_at, data_crc, data_now, footer_at, summary_crc, summary_now = \
+        bagio._section_crcs(data)
+    assert data_crc == data_now != 0 and summary_crc == summary_now != 0
+    summary_start = struct.unpack_from("<Q", data, footer_at + 9)[0]
+    assert end_at + 13 == summary_start < footer_at
+    damaged = tmp_path / "damaged"
+    shutil.copytree(bag, damaged)
+    broken = bytearray(data)
+    broken[summary_start + 20] ^= 0x01
+    next(damaged.glob("*.mcap")).write_bytes(bytes(broken))
+    assert cli.main(["check", str(damaged)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "summary CRC" in err

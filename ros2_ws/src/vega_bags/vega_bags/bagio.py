@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import struct
 import subprocess
 from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
@@ -132,6 +133,68 @@ def _writer_class():
         STORAGE_PLUGINS = {**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: _McapWriter}
 
     return _Writer
+
+
+_MAGIC = b"\x89MCAP0\r\n"
+_FOOTER = struct.Struct("<BQQQI")      # opcode 0x02, length 20, summary_start, offset_start, crc
+_DATA_END = struct.Struct("<BQI")      # opcode 0x0F, length 4, data_section_crc
+
+
+def _section_crcs(data: bytes) -> tuple[int, int, int, int, int, int] | None:
+    """(DataEnd offset, stored data CRC, computed data CRC, footer offset, stored summary CRC,
+    computed summary CRC) of a closed MCAP file (MCAP specification, "DataEnd" and "Footer":
+    the data-section CRC covers every byte from the file's start to the DataEnd record, the
+    summary CRC every byte from the summary's start through the footer's
+    ``summary_offset_start``); None if the file does not end in a footer and a DataEnd
+    record where the footer says."""
+    import zlib
+
+    footer_at = len(data) - len(_MAGIC) - _FOOTER.size
+    if footer_at < len(_MAGIC) or data[-len(_MAGIC):] != _MAGIC:
+        return None
+    op, length, summary_start, _, summary_crc = _FOOTER.unpack_from(data, footer_at)
+    end_at = (summary_start or footer_at) - _DATA_END.size
+    if op != 0x02 or length != 20 or end_at < len(_MAGIC):
+        return None
+    op, length, data_crc = _DATA_END.unpack_from(data, end_at)
+    if op != 0x0F or length != 4:
+        return None
+    summary_from = summary_start or footer_at
+    return (end_at, data_crc, zlib.crc32(data[:end_at]), footer_at, summary_crc,
+            zlib.crc32(data[summary_from:footer_at + _FOOTER.size - 4]))
+
+
+def write_section_crcs(mcap: Path) -> None:
+    """Write the data-section and summary CRCs into a closed MCAP file (rosbags leaves both
+    0, "not computed")."""
+    data = mcap.read_bytes()
+    found = _section_crcs(data)
+    if found is None:
+        raise BagError(f"bag file {mcap}: no MCAP footer after closing")
+    end_at, _, data_crc, footer_at, _, _ = found
+    with open(mcap, "r+b") as f:
+        f.seek(end_at + 9)
+        f.write(data_crc.to_bytes(4, "little"))
+    data = mcap.read_bytes()
+    summary_crc = _section_crcs(data)[5]
+    with open(mcap, "r+b") as f:
+        f.seek(footer_at + _FOOTER.size - 4)
+        f.write(summary_crc.to_bytes(4, "little"))
+
+
+def check_section_crcs(path: Path) -> None:
+    """Raise :class:`BagError` (one line) if a non-zero data-section or summary CRC of the
+    bag's MCAP files does not match their bytes (0 = not computed: nothing to check)."""
+    for mcap in sorted(path.glob("*.mcap")):
+        found = _section_crcs(mcap.read_bytes())
+        if found is None:
+            continue        # rosbags' reader names a file without a footer
+        _, data_crc, data_now, _, summary_crc, summary_now = found
+        for what, stored, now in (("data section", data_crc, data_now),
+                                  ("summary", summary_crc, summary_now)):
+            if stored and stored != now:
+                raise BagError(f"bag {path}: corrupt data ({mcap.name}: {what} CRC "
+                               f"{stored:08x} stored, {now:08x} computed)")
 
 
 def run_metadata_path(bag_dir: str | Path) -> Path:
@@ -396,6 +459,8 @@ class RunBagWriter:
         writer, self._writer = self._writer, None
         if writer is not None:
             writer.close()
+            for mcap in self.path.glob("*.mcap"):
+                write_section_crcs(mcap)
             meta = self.path / "metadata.yaml"
             text = meta.read_text()
             meta.write_text(text.replace("\n  ros_distro: rosbags\n",
@@ -691,6 +756,7 @@ def _open_reader(path: Path):
                            f"not closed (its recorder was killed?); `vega bag repair {path}` "
                            f"recovers what was written")
         raise BagError(f"bag {path}: not a rosbag2 directory (no metadata.yaml)")
+    check_section_crcs(path)
     reader = Reader(path)
     try:
         reader.open()
