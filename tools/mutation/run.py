@@ -178,17 +178,38 @@ def _diff(sources, key):
             if ln.startswith(("+", "-")) and not ln.startswith(("+++", "---"))]
 
 
-def run_module(name, target, max_children, commit, tree):
-    """Mutate one module, return its result record (also written to bench/results)."""
-    stage, rel, tests, missing = _stage(name, target, tree)
-    started = time.monotonic()
-    log = stage / "mutmut.log"
-    print(f"mutation: {name}: mutmut run (log {log.relative_to(ROOT)})", flush=True)
-    proc = _mutmut(stage, "run", "--max-children", str(max_children), log=log)
-    elapsed = time.monotonic() - started
+def run_module(name, target, max_children, commit, tree, collect=False):
+    """Mutate one module, return its result record (also written to bench/results).
+
+    ``collect``: do not run; read what an earlier (possibly interrupted) run of the module in
+    build/mutation/<module>/ has recorded (mutants not yet run count as "not checked").
+    """
+    if collect:
+        stage = WORK / name
+        link = stage / "ros2_ws"
+        if link.is_symlink() and link.resolve().parent.name.startswith("_tree-"):
+            tree = link.resolve().parent
+            commit = tree.name.removeprefix("_tree-")
+        else:
+            tree, commit = ROOT, commit + "+worktree"
+        source = Path(target["source"])
+        rel = f"{source.parent.name}/{source.name}"
+        tests = [str(t) for t in target["tests"] if (tree / t).is_file()]
+        missing = [str(t) for t in target["tests"] if not (tree / t).is_file()]
+        log = stage / "mutmut.log"
+        elapsed = log.stat().st_mtime - (stage / "pyproject.toml").stat().st_mtime
+        returncode = 0
+    else:
+        stage, rel, tests, missing = _stage(name, target, tree)
+        started = time.monotonic()
+        log = stage / "mutmut.log"
+        print(f"mutation: {name}: mutmut run (log {log.relative_to(ROOT)})", flush=True)
+        returncode = _mutmut(stage, "run", "--max-children", str(max_children),
+                             log=log).returncode
+        elapsed = time.monotonic() - started
     meta = stage / "mutants" / (rel + ".meta")
-    if proc.returncode != 0 or not meta.is_file():
-        print(f"mutation: mutmut run failed for {name} (exit {proc.returncode}); log: {log}",
+    if returncode != 0 or not meta.is_file():
+        print(f"mutation: mutmut run failed for {name} (exit {returncode}); log: {log}",
               file=sys.stderr)
         return None
     codes = json.loads(meta.read_text())["exit_code_by_key"]
@@ -207,8 +228,10 @@ def run_module(name, target, max_children, commit, tree):
                 record["reason"] = eq["reason"]
         mutants.append(record)
     counts = {s: sum(m["status"] == s for m in mutants)
-              for s in ("killed", "survived", "equivalent", "timeout", "no tests", "suspicious")}
-    judged = len(mutants) - counts["equivalent"] - counts["no tests"]
+              for s in ("killed", "survived", "equivalent", "timeout", "no tests", "suspicious",
+                        "not checked")}
+    judged = (len(mutants) - counts["equivalent"] - counts["no tests"]
+              - counts["not checked"])
     result = {
         "module": name, "source": target["source"], "tests": tests, "missing_tests": missing,
         "commit": commit, "date": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
@@ -216,7 +239,7 @@ def run_module(name, target, max_children, commit, tree):
         "counts": counts,
         "killed_percent": round(100.0 * (counts["killed"] + counts["timeout"]) / judged, 1)
         if judged else None,
-        "not_killed": [m for m in mutants if m["status"] != "killed"],
+        "not_killed": [m for m in mutants if m["status"] not in ("killed", "not checked")],
     }
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / f"{name}.json").write_text(json.dumps(result, indent=1) + "\n")
@@ -234,14 +257,18 @@ def write_table(order):
         c = r["counts"]
         rows.append(f"| {name} | {r['total']} | {c['killed']} | {c['survived']} | "
                     f"{c['equivalent']} | {c['timeout']} | {c['no tests'] + c['suspicious']} | "
+                    f"{c.get('not checked', 0)} | "
                     f"{r['killed_percent']} | {r['seconds']:.0f} | {r['commit']} | {r['date']} |")
     TABLE.parent.mkdir(parents=True, exist_ok=True)
     TABLE.write_text(
         "# Mutation testing: per-module table (written by `make mutation`)\n\n"
-        "killed % = (killed + timeout) / (all - equivalent - no tests); one worker process.\n"
+        "killed % = (killed + timeout) / (all - equivalent - no tests - not checked); one "
+        "worker process. other = no tests (no covering test runs the function) + suspicious; "
+        "not checked = not reached by an interrupted run.\n"
         "Survivor diffs: bench/results/mutation/<module>.json. How to run: docs/TESTING.md.\n\n"
-        "| module | mutants | killed | survived | equivalent | timeout | other | killed % "
-        "| run time s | commit | date |\n|---|---|---|---|---|---|---|---|---|---|---|\n"
+        "| module | mutants | killed | survived | equivalent | timeout | other | not checked "
+        "| killed % | run time s | commit | date |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|\n"
         + "\n".join(rows) + "\n")
 
 
@@ -256,6 +283,9 @@ def main(argv=None):
     parser.add_argument("--worktree", action="store_true",
                         help="mutate the checkout as it is, uncommitted edits included (default: "
                              "the committed HEAD, so that the table names exactly what it ran)")
+    parser.add_argument("--collect", action="store_true",
+                        help="do not run: tabulate what the last (possibly interrupted) run of "
+                             "each module recorded in build/mutation/<module>/")
     args = parser.parse_args(argv)
     if args.max_children < 1:
         print("mutation: --max-children must be >= 1", file=sys.stderr)
@@ -263,12 +293,13 @@ def main(argv=None):
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, text=True,
                             capture_output=True, check=False).stdout.strip() or "unknown"
-    tree = _tree(None if args.worktree else commit)
+    tree = ROOT if args.collect else _tree(None if args.worktree else commit)
     if args.worktree:
         commit += "+worktree"
     failed = []
     for name in args.module or list(targets):
-        result = run_module(name, targets[name], args.max_children, commit, tree)
+        result = run_module(name, targets[name], args.max_children, commit, tree,
+                            collect=args.collect)
         if result is None:
             failed.append(name)
             continue
