@@ -18,7 +18,8 @@ from pathlib import Path
 import pytest
 
 from fixture_tables import write_pd_table
-from sil_flights import flight_env, start_vega_sil_run, vega_sil_run, write_short_scenario
+from sil_flights import (children_of, flight_env, start_vega_sil_run, vega_sil_run,
+                         write_short_scenario)
 import test_sil_nodes as sil_nodes
 from vega_bags import bagio
 from vega_bringup import rosenv
@@ -72,6 +73,24 @@ def _until(done, timeout_s=30.0):
     return True
 
 
+def _shm_modes(pid):
+    """Mode bits of the Fast DDS shared-memory files process ``pid`` has mapped."""
+    import os
+
+    try:
+        maps = Path(f"/proc/{pid}/maps").read_text()
+    except OSError:
+        return {}
+    modes = {}
+    for path in {line.split(None, 5)[-1] for line in maps.splitlines()
+                 if " /dev/shm/fastrtps_" in line}:
+        try:
+            modes[path] = os.stat(path).st_mode & 0o777
+        except OSError:
+            continue
+    return modes
+
+
 def test_a_busy_domain_is_found_and_never_picked(rogue, ros_domain_id, tmp_path):
     assert rosenv.domain_in_use(ros_domain_id) is None
     rogue("squatter", topics.INS.name, 0)
@@ -111,6 +130,12 @@ def test_a_foreign_publisher_fails_the_run_naming_it(rogue, tmp_path, scenario, 
             if "start barrier complete" in line:
                 break
         assert proc.poll() is None, "".join(stderr)
+        # the nodes' Fast DDS shared-memory segments: for the run's user only
+        nodes = children_of(proc.pid)
+        assert len(nodes) == 5
+        assert _until(lambda: all(_shm_modes(pid) and not any(m & 0o077 for m in
+                                                              _shm_modes(pid).values())
+                                  for pid in nodes), 10.0), {p: _shm_modes(p) for p in nodes}
         rogue("rogue_ins", topics.INS.name, 50, "seq=1", "stamp_ms=10012",
               "velocity_mps=12345", "pitch_rad=0.5", "valid=1")
         stderr.append(proc.communicate(timeout=120)[1])

@@ -39,6 +39,7 @@ import sys
 import threading
 import time
 import traceback
+from pathlib import Path
 from typing import Any, Callable
 
 from vega_core.errors import BadInput, one_line
@@ -84,8 +85,30 @@ class SeqCheck:
 
 
 NODE_UMASK = 0o077
-"""File-mode creation mask of every node: files and shared-memory segments it creates are
-readable and writable by its user only (Fast DDS creates its segments with the mask applied)."""
+"""File-mode creation mask of every node: files it creates are readable and writable by its
+user only (Fast DDS sets its shared-memory segments' mode itself:
+:func:`restrict_shared_memory`)."""
+
+
+def restrict_shared_memory() -> int:
+    """Make the shared-memory files this process has mapped (Fast DDS's segments in
+    /dev/shm, created 0644) and owns readable and writable by its user only; the number
+    changed. The run's other nodes run as the same user and keep their access."""
+    changed = 0
+    try:
+        maps = Path("/proc/self/maps").read_text()
+    except OSError:
+        return 0
+    uid = os.getuid()
+    for path in {line.split(None, 5)[-1] for line in maps.splitlines()
+                 if " /dev/shm/fastrtps_" in line}:
+        try:
+            if os.stat(path).st_uid == uid:
+                os.chmod(path, 0o600)
+                changed += 1
+        except OSError:
+            continue
+    return changed
 
 
 class StreamCheck:
@@ -148,8 +171,8 @@ class Shell:
         self.failure: NodeExit | None = None
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, self._on_signal)
-        # what the node creates — Fast DDS's shared-memory segments in /dev/shm, the
-        # recorder's bag — is for the user who runs it only (docs/SECURITY.md)
+        # what the node creates (the recorder's bag, logs) is for the user who runs it only;
+        # Fast DDS's shared-memory segments ignore the mask: restrict_shared_memory
         os.umask(NODE_UMASK)
         if network.enforce():
             print(f"{name}: ROS_DOMAIN_ID was not set; using {network.HAND_START_DOMAIN_ID}, "
@@ -348,6 +371,7 @@ class Shell:
             raise NodeExit(EXIT_RUN_FAILURE, barrier.describe_missing())
         self._barrier_passed = True
         self._stop_parameter_services()
+        restrict_shared_memory()   # every segment of the run exists once the barrier passed
         return barrier
 
     def _stop_parameter_services(self) -> None:
