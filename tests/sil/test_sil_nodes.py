@@ -417,3 +417,25 @@ def test_short_run_records_a_complete_bag(nodes, tmp_path, pd_table):
     ref = run_scenario(scenario, table)
     assert np.array_equal(run["/vega/truth"]["pitch_rad"], ref.theta_rad)
     assert np.array_equal(run["/vega/tvc_cmd"]["deflection_cmd_rad"], ref.cmd_rad)
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize("text, problem", [
+    ("/**:\n  ros__parameters: [oops\n", "bad.yaml: not valid YAML (line 3)"),
+    ("/**:\n  ros__parameters: 3\n",
+     "bad.yaml: node parameters file: '/**' must hold only 'ros__parameters', a mapping"),
+    ("plant:\n  seed: 1\n",
+     "bad.yaml: node parameters file: 'plant/seed' must hold 'ros__parameters' (a mapping), "
+     "got 1"),
+    ("#" * (1 << 20) + "\n", "bad.yaml: node parameters file is 1048577 bytes, over the 1 MiB "
+                             "(1048576 bytes) limit"),
+])
+def test_malformed_params_file_exits_2_with_one_line(nodes, tmp_path, text, problem):
+    """Issue 11 item 5: a node given a malformed parameters file by hand says so in one line
+    and exits 2 (before: rcl's error line, a traceback, exit 1)."""
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    code, _out, err = _finish(nodes("plant", path))
+    assert code == 2
+    lines = [line for line in err.splitlines() if "ROS_DOMAIN_ID" not in line]
+    assert lines == [f"plant: {tmp_path}/{problem}"]

@@ -90,6 +90,40 @@ user only (Fast DDS sets its shared-memory segments' mode itself:
 :func:`restrict_shared_memory`)."""
 
 
+def _params_section_problem(tree, where: str) -> str | None:
+    """Why a node-parameters YAML mapping is not one rcl reads (None if it is): every entry a
+    node name/pattern holding ``ros__parameters`` (a mapping) or further such entries."""
+    if not isinstance(tree, dict) or not tree:
+        return f"{where or 'the top level'} must be a mapping of node names"
+    for key, value in tree.items():
+        here = f"{where}/{key}" if where else str(key)
+        if not isinstance(value, dict):
+            return f"'{here}' must hold 'ros__parameters' (a mapping), got {value!r}"
+        if "ros__parameters" in value:
+            if not isinstance(value["ros__parameters"], dict) or len(value) != 1:
+                return f"'{here}' must hold only 'ros__parameters', a mapping"
+            continue
+        problem = _params_section_problem(value, here)
+        if problem:
+            return problem
+    return None
+
+
+def check_params_files(argv: list[str]) -> None:
+    """Read every ``--params-file FILE`` of the ROS arguments before rcl does, so that a
+    missing, oversized (1 MiB) or malformed file is one line (:class:`BadInput`, exit 2)
+    instead of rcl's error line and a traceback."""
+    from vega_core.documents import load_yaml
+    from vega_core.errors import BadFile
+
+    for i, arg in enumerate(argv[:-1]):
+        if arg == "--params-file":
+            path = argv[i + 1]
+            problem = _params_section_problem(load_yaml(path, "node parameters"), "")
+            if problem:
+                raise BadFile(f"{path}: node parameters file: {problem}")
+
+
 def restrict_shared_memory() -> int:
     """Make the shared-memory files this process has mapped (Fast DDS's segments in
     /dev/shm, created 0644) and owns readable and writable by its user only; the number
@@ -177,6 +211,7 @@ class Shell:
         if network.enforce():
             print(f"{name}: ROS_DOMAIN_ID was not set; using {network.HAND_START_DOMAIN_ID}, "
                   f"the default for nodes started by hand", file=sys.stderr)
+        check_params_files(argv)
         rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node(name)
         self._rclpy = rclpy_implementation
