@@ -29,6 +29,7 @@ import os
 import shutil
 import subprocess
 import sys
+import threading
 import time
 import tomllib
 from pathlib import Path
@@ -60,9 +61,12 @@ TREE_PATHS = ["ros2_ws/src", "offline_synthesis", "tests", "docs", "tools"]
 # and session-scoped fixtures (an SDP solve, a simulated flight) run again in every mutant's
 # process and are not part of the measured test durations; per module: ``timeout_s``.
 TIMEOUT_S = 20.0
+# Wall-clock limit of one mutant process (all of a module's covering tests take < 15 s here).
+MUTANT_WALL_S = 60.0
 
 STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped",
           36: "timeout", 24: "timeout", -24: "timeout", 152: "timeout", 255: "timeout",
+          -9: "timeout",    # SIGKILL: the wall-clock limit of _watchdog
           None: "not checked"}
 
 
@@ -144,14 +148,47 @@ def _equivalents():
     return tomllib.loads(EQUIVALENTS.read_text())
 
 
+def _watchdog(proc, stop, limit_s):
+    """SIGKILL a mutant process (a grandchild of mutmut: mutmut → fork server → mutant) that
+    has run longer than ``limit_s`` wall-clock seconds; mutmut then records it as killed by
+    signal 9, counted as a timeout. (mutmut's own limits are on CPU time, and its wall-clock
+    timer did not end mutants spinning in a loop here.)"""
+    import psutil
+
+    try:
+        root = psutil.Process(proc.pid)
+    except psutil.NoSuchProcess:
+        return
+    while not stop.wait(2.0):
+        try:
+            servers = root.children()
+            mutants = [c for srv in servers for c in srv.children()]
+        except psutil.NoSuchProcess:
+            return
+        for m in mutants:
+            try:
+                if time.time() - m.create_time() > limit_s:
+                    m.kill()
+            except psutil.NoSuchProcess:
+                pass
+
+
 def _mutmut(stage, *args, log=None):
     exe = Path(sys.executable).parent / "mutmut"
     if log is None:
         return subprocess.run([str(exe), *args], cwd=stage, text=True, check=False,
                               capture_output=True)
     with open(log, "w") as out:
-        return subprocess.run([str(exe), *args], cwd=stage, text=True, check=False,
-                              stdout=out, stderr=subprocess.STDOUT)
+        proc = subprocess.Popen([str(exe), *args], cwd=stage, text=True, stdout=out,
+                                stderr=subprocess.STDOUT)
+        stop = threading.Event()
+        guard = threading.Thread(target=_watchdog, args=(proc, stop, MUTANT_WALL_S),
+                                 daemon=True)
+        guard.start()
+        proc.wait()
+        stop.set()
+        guard.join()
+        return proc
 
 
 def _function_sources(path):
