@@ -30,21 +30,26 @@ def test_bad_arguments(tmp_path, capsys, args, message):
     assert not any(tmp_path.iterdir())
 
 
-def test_anchors_without_parameters_are_refused(tmp_path, capsys):
-    """A structured table whose metadata lacks an anchor's parameters: one line, exit 2."""
+def _shipped_with(tmp_path, edit):
+    """A copy of the shipped structured table with its metadata changed by ``edit``."""
     import json
 
     import numpy as np
 
-    shipped = LPV.with_name("tvc_controller.npz")
-    with np.load(shipped) as f:
+    with np.load(LPV.with_name("tvc_controller.npz")) as f:
         arrays = dict(f)
     meta = json.loads(str(arrays["metadata"]))
-    meta["anchors_s"] = meta["anchors_s"] + [123.0]
+    edit(meta)
     arrays["metadata"] = np.array(json.dumps(meta))
     table = tmp_path / "in" / "t.npz"
     table.parent.mkdir()
     np.savez(table, **arrays)
+    return table
+
+
+def test_anchors_without_parameters_are_refused(tmp_path, capsys):
+    """A structured table whose metadata lacks an anchor's parameters: one line, exit 2."""
+    table = _shipped_with(tmp_path, lambda meta: meta.update(anchors_s=meta["anchors_s"] + [123.0]))
     assert_refused(["design", "--out", str(tmp_path / "t.npz"), "--anchors-from", str(table)],
                    capsys, "its anchors have no 14 tuned parameters")
     assert not (tmp_path / "t.npz").exists()
@@ -52,21 +57,12 @@ def test_anchors_without_parameters_are_refused(tmp_path, capsys):
 
 def test_tail_without_its_hold_time_is_refused(tmp_path, capsys):
     """A structured table with no grid point at the tail-off hold time: one line, exit 2."""
-    import json
+    def drop_86(meta):
+        keep = [i for i, t in enumerate(meta["grid_times_s"]) if t != 86.0]
+        meta["grid_times_s"] = [meta["grid_times_s"][i] for i in keep]
+        meta["parameters_per_grid_time"] = [meta["parameters_per_grid_time"][i] for i in keep]
 
-    import numpy as np
-
-    shipped = LPV.with_name("tvc_controller.npz")
-    with np.load(shipped) as f:
-        arrays = dict(f)
-    meta = json.loads(str(arrays["metadata"]))
-    keep = [i for i, t in enumerate(meta["grid_times_s"]) if t != 86.0]
-    meta["grid_times_s"] = [meta["grid_times_s"][i] for i in keep]
-    meta["parameters_per_grid_time"] = [meta["parameters_per_grid_time"][i] for i in keep]
-    arrays["metadata"] = np.array(json.dumps(meta))
-    table = tmp_path / "in" / "t.npz"
-    table.parent.mkdir()
-    np.savez(table, **arrays)
+    table = _shipped_with(tmp_path, drop_86)
     assert_refused(["design", "--out", str(tmp_path / "t.npz"), "--tail-from", str(table)],
                    capsys, "no grid point at the tail-off hold time 86 s")
     assert not (tmp_path / "t.npz").exists()
