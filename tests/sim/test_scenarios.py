@@ -119,6 +119,20 @@ def _error(tmp_path, text, name="demo"):
     ("t_start_s: 10.0", "t_start_s: .nan", "t_start_s"),
     ("  beta_rad: 0.001", "  beta_rad: 0.2", "initial_state.beta_rad"),
     ("gust: {start_s: 11.0}", "gust: {start_s: 11.0, duration_s: 0}", "wind.gust.duration_s"),
+    ("gust: {start_s: 11.0}", "gust: {start_s: 11.0, duration_s: 100.01}",
+     "wind.gust.duration_s"),
+    ("gust: {start_s: 11.0}", "gust: {start_s: 11.0, amplitude_mps: -45.01}",
+     "wind.gust.amplitude_mps"),
+    ("gust: {start_s: 11.0}", "gust: {start_s: 11.0, amplitude_mps: 1.0e+300}",
+     "wind.gust.amplitude_mps"),
+    ("  theta_rad: 0.01", "  theta_rad: 1.0e+300", "initial_state.theta_rad"),
+    ("  theta_rad: 0.01", "  theta_rad: -0.3501", "initial_state.theta_rad"),
+    ("  theta_rad: 0.01", "  theta_rad: 0.01\n  theta_dot_radps: 0.36",
+     "initial_state.theta_dot_radps"),
+    ("  theta_rad: 0.01", "  theta_rad: 0.01\n  z_m: 1000.5", "initial_state.z_m"),
+    ("  theta_rad: 0.01", "  theta_rad: 0.01\n  z_dot_mps: -50.5", "initial_state.z_dot_mps"),
+    ("  theta_rad: 0.01", "  theta_rad: 0.01\n  q1: 10.5", "initial_state.q1"),
+    ("  theta_rad: 0.01", "  theta_rad: 0.01\n  q2_dot: -1000.5", "initial_state.q2_dot"),
     ("uncertainty: {thrust: 0.05, delay_s: 0.01}", "uncertainty: {thrusts: 0.05}",
      "uncertainty.thrusts"),
     ("uncertainty: {thrust: 0.05, delay_s: 0.01}", "uncertainty: {thrust: 0.5}",
@@ -173,3 +187,15 @@ def test_span_beyond_the_flight_condition_table_is_refused_on_loading(tmp_path):
                             f"past t_end), got {end_s!r}"), message
     with pytest.raises(ValueError, match=r"^scenario 'thesis': field 't_end_s': must be <="):
         replace(load_scenario("thesis"), t_end_s=500.0)
+
+
+def test_plausibility_bounds_are_inclusive(tmp_path):
+    """The edges of the plausible ranges load (the bound itself is allowed)."""
+    text = GOOD.replace("  theta_rad: 0.01", "  theta_rad: -0.35\n  z_m: 1000.0\n  q1: 10.0", 1)
+    text = text.replace("gust: {start_s: 11.0}",
+                        "gust: {start_s: 11.0, amplitude_mps: 45.0, duration_s: 100.0}", 1)
+    path = tmp_path / "demo.yaml"
+    path.write_text(text)
+    s = load_scenario(path)
+    assert s.initial_state.theta_rad == -0.35 and s.initial_state.q1 == 10.0
+    assert s.wind.gust.amplitude_mps == 45.0

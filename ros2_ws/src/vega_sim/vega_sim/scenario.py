@@ -16,7 +16,8 @@ File format (SI units, radians; ``#`` comments allowed)::
     initial_state:                  # optional; missing states are 0; deviations from the
                                     # guidance reference flight at t_start (assembly.py)
       theta_rad: 0.0349             # also theta_dot_radps, z_m, z_dot_mps, q1, q2, q1_dot,
-                                    # q2_dot, beta_rad (nozzle at rest)
+                                    # q2_dot, beta_rad (nozzle at rest); each within a
+                                    # plausible range (_INITIAL_STATE_LIMITS)
     wind:
       profile: false                # steady profile V_w(h), thesis Eq. 2.54
       turbulence: light             # none | light | moderate | severe (thesis Table 2.4)
@@ -67,6 +68,23 @@ from vega_gnc.guidance_reference import DEFAULT_GUIDANCE, NO_GUIDANCE
 # or a 10 km shift it is another wind, not a change of this one).
 _MAX_PROFILE_SCALE = 3.0
 _MAX_PROFILE_SHIFT_M = 10_000.0
+# Plausible initial deviations from the reference flight, per field (assumptions: the linear
+# model is a small-perturbation model about the reference attitude (docs/MODEL.md §2) and the
+# nonlinear plant keeps its small-angle aerodynamics, so 0.35 rad (20°) of attitude error and
+# 0.35 rad/s of rate are far beyond any launch dispersion and still inside where the models
+# mean something; drift 1 000 m and 50 m/s are twice the drift budget and > 3× the drift-rate
+# budget (docs/REQUIREMENTS.md); modal amplitudes 10 are 10× the Monte Carlo stability limit
+# of mode 1 (|q1| > 1), modal rates 1 000 /s about 10× that amplitude at the highest bending
+# frequency (≈ 75 rad/s)). Issue 11 item 5: a finite but absurd value (1e300) flew and
+# produced NaN.
+_INITIAL_STATE_LIMITS = {"theta_rad": 0.35, "theta_dot_radps": 0.35, "z_m": 1000.0,
+                         "z_dot_mps": 50.0, "q1": 10.0, "q2": 10.0, "q1_dot": 1000.0,
+                         "q2_dot": 1000.0}
+# Largest gust amplitude a scenario may fly [m/s] (assumption: 5× the 9 m/s design gust of
+# vehicle.yaml wind.gust, i.e. beyond any discrete design gust) and its longest duration [s]
+# (assumption: a gust longer than the 100 s flight is a profile, not a gust).
+_MAX_GUST_MPS = 45.0
+_MAX_GUST_DURATION_S = 100.0
 
 __all__ = ["DEFAULT_GUIDANCE", "NO_GUIDANCE", "GustSettings", "WindSettings", "InitialState",
            "Scenario", "scenario_names", "scenario_path", "scenario_file", "load_scenario",
@@ -428,14 +446,23 @@ def _validate(s: Scenario, data: VehicleData) -> None:
         if (isinstance(value, bool) or not isinstance(value, (int, float))
                 or not math.isfinite(value)):
             raise _FieldError(f"initial_state.{f.name}", f"must be a finite number, got {value!r}")
+    for name, bound in _INITIAL_STATE_LIMITS.items():
+        value = getattr(s.initial_state, name)
+        if not abs(value) <= bound:
+            raise _FieldError(f"initial_state.{name}", f"must be within ±{bound:g} (a plausible "
+                                                       f"initial deviation), got {value!r}")
     limit = data["actuator.position_limit_rad"]
     if abs(s.initial_state.beta_rad) > limit:
         raise _FieldError("initial_state.beta_rad", f"|beta| must be <= the stop {limit:.6g} rad")
     if s.wind.turbulence not in INTENSITIES:
         raise _FieldError("wind.turbulence", f"must be one of {', '.join(INTENSITIES)}, "
                                              f"got {s.wind.turbulence!r}")
-    if s.wind.gust is not None and not s.wind.gust.duration_s > 0.0:
-        raise _FieldError("wind.gust.duration_s", f"must be > 0, got {s.wind.gust.duration_s!r}")
+    if s.wind.gust is not None and not 0.0 < s.wind.gust.duration_s <= _MAX_GUST_DURATION_S:
+        raise _FieldError("wind.gust.duration_s", f"must be > 0 and <= {_MAX_GUST_DURATION_S:g} "
+                                                  f"s, got {s.wind.gust.duration_s!r}")
+    if s.wind.gust is not None and not abs(s.wind.gust.amplitude_mps) <= _MAX_GUST_MPS:
+        raise _FieldError("wind.gust.amplitude_mps", f"must be within ±{_MAX_GUST_MPS:g} m/s, "
+                                                     f"got {s.wind.gust.amplitude_mps!r}")
     if not abs(s.wind.profile_scale) <= _MAX_PROFILE_SCALE:
         raise _FieldError("wind.profile_scale", f"must be within ±{_MAX_PROFILE_SCALE:g}, "
                                                 f"got {s.wind.profile_scale!r}")
