@@ -491,11 +491,12 @@ matrices — checked by the verification every 0.5 s, not assumed."""
 TAIL_OFF_HOLD_S = 86.0
 """From here to burn-out one controller (tuned jointly over the tail-off, :func:`tune_tail`;
 the notches still follow the nominal bending frequencies): over the thrust tail-off the
-velocity — the scheduling variable — hardly changes (1 890 → 1 930 m/s from 94 to 100 s) while the thrust falls, so a
-dispersed vehicle (velocity +4…10 %) measures the velocity of the nominal 96–100 s already at
-90 s. Tuned per time, the 96–100 s controllers (mode 1 phase-stabilised at low thrust) made
-28 % of the Monte Carlo flights unstable near 90 s. The parameters tuned at 86 s alone, held,
-met every requirement from 86 to 99 s but left PM 28.4° at 100 s; tuned jointly, 34.95°."""
+velocity — the scheduling variable — hardly changes (1 890 → 1 930 m/s from 94 to 100 s)
+while the thrust falls, so a dispersed vehicle (velocity +4…10 %) measures the velocity of the
+nominal 96–100 s already at 90 s. Tuned per time, the 96–100 s controllers (mode 1
+phase-stabilised at low thrust) made 28 % of the Monte Carlo flights unstable near 90 s.
+The parameters tuned at 86 s alone, held, met every requirement from 86 to 99 s but left
+PM 28.4° at 100 s; tuned jointly, 34.95°."""
 START_X = (-0.047, -0.153, 0.18, -6.6, 1.165, 0.35, 0.862, 0.042, 1.2, 0.939, 0.297, 0.113,
            1.215, 0.2)
 """Initial member of every anchor's population (a max-Q tuning; any point of the box works,
