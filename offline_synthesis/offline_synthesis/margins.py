@@ -569,7 +569,7 @@ def check_table_stabilises(table, context, t_start_s: float, t_end_s: float,
         shown = ", ".join(f"{r['t_s']:g}" for r in inside[:5]) + (" …" if len(inside) > 5 else "")
         raise BadFile(f"controller table {table.path}: the nominal frozen closed loop is "
                       f"unstable inside its scheduling range at t = {shown} s (largest "
-                      f"|eigenvalue| {max(r['max_abs_eig'] for r in inside):.4f}): refused")
+                      f"|eigenvalue| {max(r['max_abs_eig'] for r in inside):.6g}): refused")
     return rows
 
 

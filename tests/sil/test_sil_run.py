@@ -157,18 +157,19 @@ def test_malformed_table_is_rejected_before_start(tmp_path, capsys, no_start):
     assert not (tmp_path / "runs").exists()
 
 
-@pytest.mark.parametrize("command", ["sil", "mc"])
+@pytest.mark.parametrize("command, factor", [("sil", 5.0), ("mc", 5.0), ("sil", 1e300)])
 def test_table_that_does_not_stabilise_is_refused_before_start(tmp_path, capsys, no_start,
-                                                               command):
+                                                               command, factor):
     """The shipped table with every output gain ×5 (well formed, finite, each discrete
-    controller as stable as before): its nominal frozen loops are unstable inside the grid, so
-    `vega sil run` and `vega mc run` refuse it in one line, exit 2, nothing written."""
+    controller as stable as before) — or ×1e300, absurd but finite (issue 11 item 5): its
+    nominal frozen loops are unstable inside the grid, so `vega sil run` and `vega mc run`
+    refuse it in one line, exit 2, nothing written."""
     import numpy as np
     from vega_gnc.controller_table import default_table_path
 
     arrays = dict(np.load(default_table_path()))
     for key in ("C", "D", "Cd", "Dd"):
-        arrays[key] = arrays[key] * 5.0
+        arrays[key] = arrays[key] * factor
     bad = tmp_path / "gain5.npz"
     np.savez(bad, **arrays)
     extra = ["--runs", "2"] if command == "mc" else []
