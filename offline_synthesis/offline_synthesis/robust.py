@@ -393,10 +393,9 @@ def summarise(rows: Sequence[Mapping]) -> dict:
         out["mu_upper_below_1_times"] = sum(r["mu_upper"] < 1.0 and r["mu_centre_stable"]
                                             for r in ups)
         out["mu_fit_loop_rel"] = max(r["mu_fit_loop_rel"] for r in ups)
-        out["mu_gap"] = ({"lower": max(gap, key=lambda r: r["mu_lower"])["mu_lower"],
-                          "upper_at_same_time": max(gap, key=lambda r: r["mu_lower"])["mu_upper"],
-                          "t_s": max(gap, key=lambda r: r["mu_lower"])["t_s"]}
-                         if gap else None)
+        low = max(gap, key=lambda r: r["mu_lower"]) if gap else None
+        out["mu_gap"] = ({"lower": low["mu_lower"], "upper_at_same_time": low["mu_upper"],
+                          "t_s": low["t_s"]} if low else None)
         # robust stability proved by the bound (to its fit-error cover, a sampled bound)
         out["mu_proves_stability"] = out["mu_upper_below_1_times"] == len(rows)
     else:
