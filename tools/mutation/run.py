@@ -41,6 +41,9 @@ EQUIVALENTS = HERE / "equivalents.toml"
 WORK = ROOT / "build" / "mutation"
 RESULTS = ROOT / "bench" / "results" / "mutation"
 TABLE = ROOT / "bench" / "results" / "mutation.md"
+# Every run's summary, one JSON line each (the table shows each module's first and last run:
+# the "before" and "after" of its *_mutants.py tests).
+HISTORY = RESULTS / "history.jsonl"
 
 # Lines whose statement is not mutated: message text of raised exceptions, log calls, prints.
 DO_NOT_MUTATE_PATTERNS = [
@@ -280,6 +283,11 @@ def run_module(name, target, max_children, commit, tree, collect=False):
     }
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / f"{name}.json").write_text(json.dumps(result, indent=1) + "\n")
+    if not collect:
+        summary = {k: result[k] for k in ("module", "commit", "date", "seconds", "total",
+                                          "counts", "killed_percent")}
+        with open(HISTORY, "a") as out:
+            out.write(json.dumps(summary) + "\n")
     return result
 
 
@@ -296,6 +304,7 @@ def write_table(order):
                     f"{c['equivalent']} | {c['timeout']} | {c['no tests'] + c['suspicious']} | "
                     f"{c.get('not checked', 0)} | "
                     f"{r['killed_percent']} | {r['seconds']:.0f} | {r['commit']} | {r['date']} |")
+    history = _history_rows(order)
     TABLE.parent.mkdir(parents=True, exist_ok=True)
     TABLE.write_text(
         "# Mutation testing: per-module table (written by `make mutation`)\n\n"
@@ -306,7 +315,36 @@ def write_table(order):
         "| module | mutants | killed | survived | equivalent | timeout | other | not checked "
         "| killed % | run time s | commit | date |\n"
         "|---|---|---|---|---|---|---|---|---|---|---|---|\n"
-        + "\n".join(rows) + "\n")
+        + "\n".join(rows) + "\n" + history)
+
+
+def _history_rows(order):
+    """Markdown: each module's first and last recorded run (before / after its new tests)."""
+    if not HISTORY.is_file():
+        return ""
+    runs = {}
+    for line in HISTORY.read_text().splitlines():
+        if line.strip():
+            r = json.loads(line)
+            runs.setdefault(r["module"], []).append(r)
+    rows = []
+    for name in order:
+        for label, r in (("before", runs.get(name, [None])[0]),
+                         ("after", runs.get(name, [None])[-1])):
+            if r is None or (label == "after" and len(runs[name]) == 1):
+                continue
+            c = r["counts"]
+            rows.append(f"| {name} | {label} | {r['total']} | {c['killed']} | {c['survived']} "
+                        f"| {c['equivalent']} | {c['timeout']} | "
+                        f"{c['no tests'] + c['suspicious']} | {r['killed_percent']} | "
+                        f"{r['seconds']:.0f} | {r['commit']} | {r['date']} |")
+    if not rows:
+        return ""
+    return ("\n## Before and after (first and last run recorded in "
+            "bench/results/mutation/history.jsonl)\n\n"
+            "| module | run | mutants | killed | survived | equivalent | timeout | other "
+            "| killed % | run time s | commit | date |\n"
+            "|---|---|---|---|---|---|---|---|---|---|---|---|\n" + "\n".join(rows) + "\n")
 
 
 def main(argv=None):

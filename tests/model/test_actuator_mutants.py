@@ -1,0 +1,201 @@
+"""TVC actuator: tests written for the survivors of `make mutation MODULE=actuator`.
+
+Independent references: the analytic step response of ω²/(s² + 2ζω s + ω²) (ζ < 1), the
+limiter law as the class docstring states it (hand-evaluated at its boundaries), and the
+odd symmetry of the law (every operation of it is sign-symmetric, so the response to −u is
+exactly minus the response to u: a mistake on one side only breaks it).
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from vega_model.actuator import ActuatorParams, TvcActuator
+from vega_model.vehicle_data import load_vehicle_data
+
+DEG = math.pi / 180.0
+
+
+@pytest.fixture(scope="module")
+def params():
+    return ActuatorParams.from_vehicle(load_vehicle_data())
+
+
+def _analytic_step(u, t, wn, zeta):
+    """β, β̇ of ω²/(s² + 2ζωs + ω²) for a step u at t = 0 from rest (0 < ζ < 1)."""
+    wd = wn * math.sqrt(1.0 - zeta ** 2)
+    e = math.exp(-zeta * wn * t)
+    beta = u * (1.0 - e * (math.cos(wd * t) + zeta * wn / wd * math.sin(wd * t)))
+    beta_dot = u * wn ** 2 / wd * e * math.sin(wd * t)
+    return beta, beta_dot
+
+
+def _kw(**over):
+    kw = dict(wn_radps=100.0, zeta=0.5, position_limit_rad=0.1, rate_limit_radps=0.3,
+              dt_s=1e-3)
+    kw.update(over)
+    return kw
+
+
+def test_damping_ratio_zero_is_accepted_nan_and_negative_are_not():
+    assert ActuatorParams(**_kw(zeta=0.0)).zeta == 0.0          # undamped: allowed (>= 0)
+    for bad in (math.nan, math.inf, -0.1):
+        with pytest.raises(ValueError, match="zeta"):
+            ActuatorParams(**_kw(zeta=bad))
+
+
+def test_advance_zero_steps_gives_empty_arrays_and_negative_is_refused(params):
+    act = TvcActuator(params)
+    beta, beta_dot, beta_ddot = act.advance(1.0 * DEG, 0)
+    assert beta.shape == beta_dot.shape == beta_ddot.shape == (0,)
+    with pytest.raises(ValueError):
+        act.advance(1.0 * DEG, -1)
+
+
+def test_reset_defaults_to_rest_at_zero(params):
+    act = TvcActuator(params)
+    act.advance(0.1 * DEG, 10)                  # moving: β, β̇, β̈ all non-zero
+    assert all(v != 0.0 for v in act.state)
+    act.reset()
+    assert act.state == (0.0, 0.0, 0.0) and act.command_rad == 0.0
+    assert act.step(math.nan) == (0.0, 0.0, 0.0)
+    act.reset(1.0)                               # beyond the stop: clamped, at rest
+    assert act.state == (params.position_limit_rad, 0.0, 0.0)
+    act.reset(-1.0)
+    assert act.state == (-params.position_limit_rad, 0.0, 0.0)
+
+
+def test_response_is_odd(params):
+    """Commands −u give exactly −(response to u): rate limit, stops, leaving them, NaN hold."""
+    rng = np.random.default_rng(5)
+    cmds = np.concatenate([np.full(400, 5.0 * DEG), np.full(300, -2.0 * DEG),
+                           np.full(600, 20.0 * DEG), np.full(200, 0.0),
+                           [math.nan] * 50, rng.uniform(-10.0, 10.0, 300) * DEG,
+                           np.full(300, params.position_limit_rad + 5e-5)])
+    a, b = TvcActuator(params), TvcActuator(params)
+    pos = np.array([a.step(c) for c in cmds])
+    neg = np.array([b.step(-c) for c in cmds])
+    np.testing.assert_array_equal(neg, -pos)
+    # the same through the batch path
+    c, d = TvcActuator(params), TvcActuator(params)
+    out_p = c.run(cmds)
+    out_n = d.run(-cmds)
+    for xp, xn in zip(out_p, out_n):
+        np.testing.assert_array_equal(np.array(xn), -np.array(xp))
+
+
+@pytest.mark.parametrize("sign", (1.0, -1.0))
+def test_negative_rate_limit_holds_acceleration_at_zero(params, sign):
+    """On the rate limit β̇ = ±R with the law pushing beyond it, β̈ is reported as 0."""
+    act = TvcActuator(params)
+    beta, beta_dot, beta_ddot = act.advance(sign * 5.0 * DEG, 200)
+    rate = params.rate_limit_radps
+    on = beta_dot == sign * rate
+    assert on.sum() > 100
+    assert np.all(beta_ddot[on] == 0.0)
+
+
+@pytest.mark.parametrize("sign", (1.0, -1.0))
+def test_command_just_beyond_a_stop_rests_on_it_with_zero_acceleration(params, sign):
+    """u = ±(P + 5e-5 rad): the unlimited law would push with ω²·5e-5 = 0.5 rad/s² into the
+    stop; on the stop the nozzle rests: (±P, 0, 0)."""
+    act = TvcActuator(params)
+    p = params.position_limit_rad
+    beta, beta_dot, beta_ddot = act.advance(sign * (p + 5e-5), 3000)
+    assert (beta[-1], beta_dot[-1], beta_ddot[-1]) == (sign * p, 0.0, 0.0)
+    held = np.abs(beta) == p
+    assert held.sum() > 1000 and np.all(beta_dot[held] * sign <= 0.0)
+    assert np.all(beta_ddot[held] == 0.0)
+
+
+@pytest.mark.parametrize("sign", (1.0, -1.0))
+def test_leaving_the_negative_stop_moves_away_from_it(params, sign):
+    act = TvcActuator(params)
+    p = params.position_limit_rad
+    act.advance(sign * 1.0, 1500)
+    assert act.state == (sign * p, 0.0, 0.0)
+    b, r, _ = act.step(0.0)
+    assert sign * r < 0.0 and sign * b < p     # first step back already moves inwards
+
+
+def test_a_linear_step_ending_exactly_on_the_rate_limit_is_not_limited(params):
+    """Step 2 of the law acts only for |β̇'| > R. The smallest command whose first step from
+    rest ends at β̇ = R exactly is a linear step: β equals the exact continuous response."""
+    rate, dt = params.rate_limit_radps, params.dt_s
+    _, rd = _analytic_step(1.0, dt, params.wn_radps, params.zeta)
+    u = rate / rd
+    act = TvcActuator(params)
+    cands = []
+    x = u
+    for _ in range(40):
+        x = math.nextafter(x, 0.0)
+    for _ in range(80):
+        act.reset()
+        b, r, a = act.step(x)
+        if r == rate:
+            cands.append((x, b))
+        x = math.nextafter(x, 1.0)
+    assert cands, "no command within 40 ulps ends at the rate limit"
+    x, b = cands[0]
+    b_ref, _ = _analytic_step(x, dt, params.wn_radps, params.zeta)
+    assert b == pytest.approx(b_ref, rel=1e-9)
+    # the trapezoid of the limited step would give dt/2·R: 3 % off
+    assert abs(b - 0.5 * dt * rate) > 0.01 * b_ref
+
+
+def test_arriving_exactly_on_the_stop_keeps_the_rate(params):
+    """Step 3 acts only for β' > P: a rate-limited step that lands exactly on P keeps β̇ = R
+    (β̈ held at 0); the next step then stops it."""
+    pos, rate, dt = params.position_limit_rad, params.rate_limit_radps, params.dt_s
+    act = TvcActuator(params)
+    b0 = pos - 0.5 * dt * rate
+    for _ in range(20):
+        b0 = math.nextafter(b0, 0.0)
+    found = None
+    for _ in range(40):
+        act.reset(b0)
+        out = act.step(1.0)              # huge command: linear β̇ ≫ R → rate-limited
+        if out[0] == pos:
+            found = out
+            break
+        b0 = math.nextafter(b0, 1.0)
+    assert found is not None, "no start position within 20 ulps lands on the stop"
+    assert found == (pos, rate, 0.0)
+    assert act.step(1.0) == (pos, 0.0, 0.0)
+    # mirrored
+    act.reset(-b0)
+    assert act.step(-1.0) == (-pos, -rate, 0.0)
+
+
+def test_run_equals_step_by_step_and_reports_the_held_commands(params):
+    rng = np.random.default_rng(11)
+    cmds = list(rng.uniform(-12.0, 12.0, 400) * DEG) + [math.nan, math.inf, -math.inf] \
+        + [9.0 * DEG] * 600 + [-9.0 * DEG] * 1000 + [math.nan] * 5
+    a, b = TvcActuator(params, beta0_rad=1.0 * DEG), TvcActuator(params, beta0_rad=1.0 * DEG)
+    betas, rates, accels, helds = a.run(cmds)
+    ref = np.array([b.step(c) for c in cmds])
+    np.testing.assert_array_equal(np.array([betas, rates, accels]).T, ref)
+    assert a.state == b.state and a.command_rad == b.command_rad == -9.0 * DEG
+    # held command: the last finite one (a NaN right after the random block holds its last)
+    assert helds[400] == helds[399] == cmds[399] and helds[-1] == -9.0 * DEG
+    assert helds[:400] == cmds[:400]
+    # limits both ways in the batch path
+    assert max(betas) == params.position_limit_rad and min(betas) == -params.position_limit_rad
+    assert max(rates) == params.rate_limit_radps and min(rates) == -params.rate_limit_radps
+    # an empty batch changes nothing
+    before = a.state
+    assert a.run([]) == ([], [], [], []) and a.state == before
+
+
+def test_run_small_step_matches_analytic_response(params):
+    """The batch path is the exact ZOH response when unlimited (independent of step())."""
+    act = TvcActuator(params)
+    u = 0.1 * DEG
+    betas, rates, accels, _ = act.run([u] * 100)
+    for k in (0, 9, 36, 99):
+        t = params.dt_s * (k + 1)
+        b_ref, r_ref = _analytic_step(u, t, params.wn_radps, params.zeta)
+        assert betas[k] == pytest.approx(b_ref, rel=1e-9)
+        assert rates[k] == pytest.approx(r_ref, rel=1e-9)
+        assert accels[k] == pytest.approx(1e4 * (u - b_ref) - 100.0 * r_ref, rel=1e-7)
