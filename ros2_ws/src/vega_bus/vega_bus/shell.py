@@ -46,8 +46,8 @@ from vega_core.errors import BadInput, one_line
 
 from vega_bus import network, parameters
 
-__all__ = ["EXIT_OK", "EXIT_RUN_FAILURE", "EXIT_BAD_INPUT", "NodeExit", "Stopped", "Shell",
-           "RecorderProgress", "run_node", "SeqCheck"]
+__all__ = ["EXIT_OK", "EXIT_RUN_FAILURE", "EXIT_BAD_INPUT", "NodeExit", "Stopped", "StopFlag",
+           "Shell", "RecorderProgress", "run_node", "SeqCheck"]
 
 EXIT_OK = 0
 EXIT_RUN_FAILURE = 1
@@ -184,8 +184,30 @@ class StreamCheck:
         self.taken = expected
 
 
+class StopFlag:
+    """SIGINT and SIGTERM set a flag (the signal's name) instead of acting at once.
+
+    Installed before anything slow happens (:class:`Shell` installs it before it imports
+    rclpy), so that a stop at any point of a node's life is polled by its wait loops
+    (:meth:`Shell.spin_once` raises :class:`Stopped`) and ends it cleanly, exit 0: never
+    rclpy's handler, which shuts the context down under a running wait (``RCLError: context
+    is not valid``), and never Python's default SIGTERM action (the process dies without
+    closing its bag) once the flag is in place. Before it — the interpreter's start and the
+    import of the node's module, ≈ 0.1–0.5 s (docs/TESTING.md, "Flaky tests") — SIGTERM still
+    ends the process by the default action, status −15, nothing written.
+    """
+
+    def __init__(self):
+        self.signal_name: str | None = None
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, self._on_signal)
+
+    def _on_signal(self, signum, _frame) -> None:
+        self.signal_name = signal.Signals(signum).name
+
+
 class Shell:
-    """rclpy context, one node and its EventsExecutor, with a signal flag.
+    """rclpy context, one node and its wait set, with a stop flag (:class:`StopFlag`).
 
     Parameters
     ----------
@@ -196,15 +218,14 @@ class Shell:
     """
 
     def __init__(self, name: str, argv: list[str]):
+        # the flag first, before rclpy is imported: a signal from here on is a clean stop
+        self._stop = StopFlag()
         import rclpy
         from rclpy.impl.implementation_singleton import rclpy_implementation
         from rclpy.signals import SignalHandlerOptions
 
         self.name = name
-        self.signal_name: str | None = None
         self.failure: NodeExit | None = None
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, self._on_signal)
         # what the node creates (the recorder's bag, logs) is for the user who runs it only;
         # Fast DDS's shared-memory segments ignore the mask: restrict_shared_memory
         os.umask(NODE_UMASK)
@@ -228,13 +249,15 @@ class Shell:
         # outside spin_once
         self.publication_number: int | None = None
 
-    def _on_signal(self, signum, _frame) -> None:
-        self.signal_name = signal.Signals(signum).name
+    @property
+    def signal_name(self) -> str | None:
+        """The name of the stop signal received (SIGINT, SIGTERM), or None."""
+        return self._stop.signal_name
 
     @property
     def stopping(self) -> bool:
         """True once SIGINT or SIGTERM arrived."""
-        return self.signal_name is not None
+        return self._stop.signal_name is not None
 
     def spin_once(self, timeout_s: float) -> None:
         """Wait (at most ``timeout_s``) until a subscription holds messages, then take every
