@@ -26,15 +26,31 @@ __all__ = ["register"]
 
 DEFAULT_OUT = "campaigns"
 
+MAX_RUNS = 1_000_000
+"""Largest ``--runs`` [flights or plants]. Assumption (a sanity bound, not a physical one): a
+dispersed 100 s flight costs about 0.5 CPU s (docs/MONTE_CARLO.md §8, 203-209x real time per
+CPU second), so 10^6 flights are about 6 CPU-days; the campaign lists every sample index in
+memory before it starts, and a larger N (a typo such as 10^12) would exhaust the memory before
+the first flight instead of being refused."""
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
-    return value
+MAX_WORKERS = 64
+"""Largest ``--workers`` of the LocalCluster (worker processes on this host), the bound
+``vega robust`` and ``vega design`` use; a larger K would start that many processes."""
+
+
+def _positive_int(highest: int):
+    """argparse type: an integer in 1..``highest``."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+        if value < 1:
+            raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
+        if value > highest:
+            raise argparse.ArgumentTypeError(f"must be <= {highest}, got {text!r}")
+        return value
+    return parse
 
 
 def _campaign(args: argparse.Namespace, kind: str) -> dict:
@@ -195,8 +211,8 @@ def _no_action(args) -> int:
 
 def _campaign_arguments(parser, what: str, default_out: str) -> None:
     """The arguments ``vega mc run`` and ``vega mc margins`` share."""
-    parser.add_argument("--runs", type=_positive_int, default=None, metavar="N",
-                        help=f"number of dispersed {what}")
+    parser.add_argument("--runs", type=_positive_int(MAX_RUNS), default=None, metavar="N",
+                        help=f"number of dispersed {what} (1..{MAX_RUNS})")
     parser.add_argument("--dispersions", default=None, metavar="FILE",
                         help="dispersion file (default: the shipped "
                              "offline_synthesis/data/dispersions.yaml)")
@@ -206,8 +222,9 @@ def _campaign_arguments(parser, what: str, default_out: str) -> None:
                              f"{DEFAULT_OUT}/{default_out})")
     parser.add_argument("--table", default=None, metavar="FILE",
                         help="controller table (default: the installed one)")
-    parser.add_argument("--workers", type=_positive_int, default=None, metavar="K",
-                        help="worker processes of the LocalCluster (default: one per core)")
+    parser.add_argument("--workers", type=_positive_int(MAX_WORKERS), default=None, metavar="K",
+                        help=f"worker processes of the LocalCluster (1..{MAX_WORKERS}; "
+                             f"default: one per core)")
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
                         help="run on an existing Dask scheduler (e.g. tcp://127.0.0.1:8786)")
     parser.add_argument("--resume", default=None, metavar="DIR",
