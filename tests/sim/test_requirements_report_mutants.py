@@ -202,6 +202,9 @@ def test_small_envelope_at_mach_min_gives_a_finite_tied_value(tmp_path, raw):
     # envelope 50/100/300: a floor load of 80 fails the floor (50) but is within table(M₀)
     # = 100, so the threshold is the sample at M₀ itself
     ([50.0, 100.0, 300.0], [0.5, 1.0, 2.0], [80.0, 0.0, 0.0], 1.0),
+    # envelope 200/150/200: the sample at M₀ itself (200 > 150) is above M₀ and fails, so
+    # the threshold moves to M 2 (below it: max 200 ≤ table(2) = 200)
+    ([200.0, 150.0, 200.0], [1.0, 2.0, 0.5], [200.0, 150.0, 100.0], 2.0),
 ])
 def test_mach_threshold_hand_cases(tmp_path, raw, values, mach, qa, expected):
     spec = _spec(tmp_path, raw, values, 1.0, "e")
