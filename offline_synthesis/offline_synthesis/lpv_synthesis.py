@@ -44,7 +44,7 @@ from offline_synthesis.certificate import certificate_check
 from offline_synthesis.gridded_plant import GriddedPlant, PlantDataError, PlantPoint
 from offline_synthesis.plant_scaling import PlantScaling, plant_scaling
 from offline_synthesis.reconstruction import controller_at
-from offline_synthesis.sdp_ipm import solve_conic
+from offline_synthesis.sdp_ipm import solve_conic, solve_conic_hsde
 
 __all__ = ["SynthesisError", "LpvSynthesisResult", "synthesize"]
 
@@ -354,8 +354,11 @@ def _lmi_constraints(layout, Xk, Yk, g, eps, reduce, tau=0.0):
     return constraints, XY
 
 
-def _solve(problem, solver, layout):
+def _solve(problem, solver, layout, embedding=False):
     """Solve with ``solver``; return (status, solver time, iterations), never raising.
+
+    ``embedding`` (IPM only): solve on the homogeneous self-dual embedding
+    (sdp_ipm.solve_conic_hsde) instead of the infeasible-start iteration (sdp_ipm.solve_conic).
 
     Clarabel settings that depend on the problem: no Ruiz equilibration when the plant is
     Riccati-balanced (equilibrating on top of it made Clarabel stop at iteration 0 with a
@@ -374,7 +377,7 @@ def _solve(problem, solver, layout):
         retries = [dict(options, static_regularization_constant=value)
                    for value in _CLARABEL_RETRY_REGULARISATIONS]
     if solver == IPM:
-        return _solve_ipm(problem)
+        return _solve_ipm(problem, embedding)
     for attempt in [options] + retries:
         try:
             with warnings.catch_warnings():
@@ -390,14 +393,22 @@ def _solve(problem, solver, layout):
     return problem.status, stats.solve_time or float("nan"), stats.num_iters or 0
 
 
-def _solve_ipm(problem):
-    """Solve with sdp_ipm.solve_conic on cvxpy's Clarabel canonicalisation; never raising."""
+def _solve_ipm(problem, embedding=False):
+    """Solve with sdp_ipm.solve_conic (or solve_conic_hsde with ``embedding``) on cvxpy's
+    Clarabel canonicalisation; never raising."""
     try:
         data, chain, inverse = problem.get_problem_data(cp.CLARABEL)
         dims = data["dims"]
         if dims.zero or dims.soc or dims.exp or getattr(dims, "p3d", None):
             return "solver_error", float("nan"), 0
-        answer = solve_conic(data["A"], data["b"], data["c"], dims.psd, dims.nonneg)
+        if embedding:
+            # stage 2 maximises a conditioning margin t: its optimum need not be reached, a
+            # feasible answer within 1 % of it serves (and is checked independently). On the
+            # 9-point problem the normal equations stalled at a relative gap of 1.5e-3.
+            answer = solve_conic_hsde(data["A"], data["b"], data["c"], dims.psd, dims.nonneg,
+                                      reduced_tol=1e-2)
+        else:
+            answer = solve_conic(data["A"], data["b"], data["c"], dims.psd, dims.nonneg)
         inverse[-1].solver_options = {}
         with warnings.catch_warnings():
             warnings.filterwarnings("ignore", message="Solution may be inaccurate")
@@ -525,7 +536,8 @@ def _stage2(layout, n, eps, g, bound, solver, robustness):
         constraints.append(X << bound * I_n)                              # X ≤ cI
         constraints.append(Y << bound * I_n)                              # Y ≤ cI
     problem = cp.Problem(cp.Maximize(t), constraints)
-    status, solve_time, iterations = _solve(problem, solver, layout)
+    # IPM: the embedding; the infeasible-start iteration stalled here (docs/SYNTHESIS.md §8)
+    status, solve_time, iterations = _solve(problem, solver, layout, embedding=True)
     if status not in _ACCEPTED_STATUSES or t.value is None:
         return _Attempt(solver, status, solve_time, iterations)
     Xv, Yv = [x.value for x in Xk], [y.value for y in Yk]
@@ -681,11 +693,14 @@ def synthesize(plant, rate_bounds=None, basis="quadratic", x_constant=False, bac
         _all_lmis(layout, X1, Y1, g1)[1]))
     c = max(bound, 1.01 * peak)
     start, tried = time.perf_counter(), []
-    # The in-house IPM is not used for stage 2: on the 3-point VEGA problem its infeasible-start
-    # iteration stalled (primal residual ≈ 0.07, dual objective growing as for an infeasibility
-    # certificate) where Clarabel solves the same problem (docs/SYNTHESIS.md §8).
-    stage2_solvers = [name for name in solvers if name != IPM] or ["CLARABEL"]
-    variants = [(stage2_solvers[0], robustness)] if robustness > 0.0 else []
+    # The in-house IPM solves stage 2 on the homogeneous self-dual embedding (its infeasible-
+    # start iteration stalled there: primal residual ≈ 0.07, dual objective growing as for an
+    # infeasibility certificate; docs/SYNTHESIS.md §8).
+    stage2_solvers = solvers
+    # the robustness margin with each interior-point solver first (not with SCS, whose answers
+    # rarely pass), then the plain stage 2 with each solver
+    variants = [(name, robustness) for name in stage2_solvers
+                if robustness > 0.0 and name != "SCS"]
     variants += [(name, 0.0) for name in stage2_solvers]
     for name, tau in variants:
         attempt = _stage2(layout, n, eps, g2, c, name, tau)
