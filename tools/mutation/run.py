@@ -218,11 +218,13 @@ def _diff(sources, key):
             if ln.startswith(("+", "-")) and not ln.startswith(("+++", "---"))]
 
 
-def run_module(name, target, max_children, commit, tree, collect=False):
+def run_module(name, target, max_children, commit, tree, collect=False, only=()):
     """Mutate one module, return its result record (also written to bench/results).
 
     ``collect``: do not run; read what an earlier (possibly interrupted) run of the module in
     build/mutation/<module>/ has recorded (mutants not yet run count as "not checked").
+    ``only``: mutant-name globs (mutmut's own selection, e.g. ``vega_bags.bagio.x_git*``): run
+    just those; the others count as "not checked" (a partial run, marked as such).
     """
     if collect:
         stage = WORK / name
@@ -244,7 +246,7 @@ def run_module(name, target, max_children, commit, tree, collect=False):
         started = time.monotonic()
         log = stage / "mutmut.log"
         print(f"mutation: {name}: mutmut run (log {log.relative_to(ROOT)})", flush=True)
-        returncode = _mutmut(stage, "run", "--max-children", str(max_children),
+        returncode = _mutmut(stage, "run", "--max-children", str(max_children), *only,
                              log=log).returncode
         elapsed = time.monotonic() - started
     meta = stage / "mutants" / (rel + ".meta")
@@ -274,7 +276,8 @@ def run_module(name, target, max_children, commit, tree, collect=False):
               - counts["not checked"])
     result = {
         "module": name, "source": target["source"], "tests": tests, "missing_tests": missing,
-        "commit": commit, "date": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
+        "commit": commit + (" (partial: " + ", ".join(only) + ")" if only else ""),
+        "date": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
         "seconds": round(elapsed, 1), "max_children": max_children, "total": len(mutants),
         "counts": counts,
         "killed_percent": round(100.0 * (counts["killed"] + counts["timeout"]) / judged, 1)
@@ -358,6 +361,9 @@ def main(argv=None):
     parser.add_argument("--worktree", action="store_true",
                         help="mutate the checkout as it is, uncommitted edits included (default: "
                              "the committed HEAD, so that the table names exactly what it ran)")
+    parser.add_argument("--only", action="append", default=[], metavar="GLOB",
+                        help="run only the mutants whose names match (mutmut's glob; "
+                             "repeatable): a partial run, the rest is 'not checked'")
     parser.add_argument("--collect", action="store_true",
                         help="do not run: tabulate what the last (possibly interrupted) run of "
                              "each module recorded in build/mutation/<module>/")
@@ -374,7 +380,7 @@ def main(argv=None):
     failed = []
     for name in args.module or list(targets):
         result = run_module(name, targets[name], args.max_children, commit, tree,
-                            collect=args.collect)
+                            collect=args.collect, only=tuple(args.only))
         if result is None:
             failed.append(name)
             continue
