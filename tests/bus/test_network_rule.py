@@ -7,6 +7,8 @@ import subprocess
 import sys
 import textwrap
 
+from load_scaling import budget_s
+
 from vega_bus import network
 from vega_bringup import rosenv
 
@@ -47,7 +49,7 @@ def test_node_shell_applies_the_rule_before_rclpy_init():
     env.update(_HOSTILE)
     env.pop("ROS_DOMAIN_ID")
     result = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,
-                            text=True, timeout=60, check=False)
+                            text=True, timeout=budget_s(60.0), check=False)
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout) == {
         "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "ROS_LOCALHOST_ONLY": None,

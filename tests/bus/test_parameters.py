@@ -14,6 +14,8 @@ from pathlib import Path
 import pytest
 import yaml
 
+from load_scaling import budget_s
+
 from vega_bringup import orchestrate
 from vega_bringup.executables import find_executable
 from vega_bus import parameters
@@ -95,7 +97,8 @@ def test_defaults_and_problems_are_the_nodes_behaviour():
 
 
 # ----------------------------------------------------------------------------- ROS
-def _ask(context, executor, node, service_type, service: str, request, timeout_s=30.0):
+def _ask(context, executor, node, service_type, service: str, request, timeout_s=None):
+    timeout_s = budget_s(30.0) if timeout_s is None else timeout_s
     client = node.create_client(service_type, service)
     try:
         assert client.wait_for_service(timeout_sec=timeout_s), f"no {service}"
@@ -118,7 +121,8 @@ def test_running_nodes_describe_their_parameters(ros_env, tmp_path):
 
     params = tmp_path / "p.yaml"
     params.write_text("/**:\n  ros__parameters:\n    scenario: \"thesis\"\n"
-                      f"    bag_path: \"{tmp_path / 'bag'}\"\n    barrier_timeout_s: 60.0\n"
+                      f"    bag_path: \"{tmp_path / 'bag'}\"\n"
+                      f"    barrier_timeout_s: {budget_s(60.0)}\n"
                       "    participants: [\"plant\", \"nobody\"]\n")
     procs = {name: subprocess.Popen([find_executable(pkg, name), "--ros-args", "--params-file",
                                      str(params)], env=ros_env, stdout=subprocess.DEVNULL,
@@ -157,7 +161,7 @@ def test_running_nodes_describe_their_parameters(ros_env, tmp_path):
         for proc in procs.values():
             if proc.poll() is None:
                 proc.terminate()
-        deadline = time.monotonic() + 15
+        deadline = time.monotonic() + budget_s(15.0)
         for proc in procs.values():
             try:
                 proc.communicate(timeout=max(0.1, deadline - time.monotonic()))

@@ -7,6 +7,8 @@ import textwrap
 
 import pytest
 
+from load_scaling import budget_s
+
 
 @pytest.mark.parametrize("code", [0, 1])
 def test_hanging_teardown_exits_with_the_runs_code(code):
@@ -23,7 +25,7 @@ def test_hanging_teardown_exits_with_the_runs_code(code):
         print("not reached")
     """)
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                            timeout=30, check=False)
+                            timeout=budget_s(30.0), check=False)
     assert result.returncode == code
     assert result.stdout == ""
     assert result.stderr == "plant: middleware shutdown hung for 0.5 s; exiting without it\n"
@@ -44,5 +46,5 @@ def test_normal_teardown_is_not_cut_short():
         print("after close")
     """)
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                            timeout=30, check=False)
+                            timeout=budget_s(30.0), check=False)
     assert result.returncode == 0 and result.stdout == "after close\n" and result.stderr == ""

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import yaml
 
+from load_scaling import budget_s
 from vega_bus import qos, topics
 from vega_sim.scenario import scenario_path
 from vega_bags import bagio
@@ -44,7 +45,7 @@ def _vega_sil_run_argv(args):
 def vega_sil_run(args):
     """Run ``vega sil run ARGS`` to completion; the CompletedProcess (text)."""
     return subprocess.run(_vega_sil_run_argv(args), env=flight_env(), capture_output=True,
-                          text=True, timeout=600, check=False)
+                          text=True, timeout=budget_s(600.0), check=False)
 
 
 def start_vega_sil_run(args):
@@ -84,7 +85,8 @@ def alive(pid):
 
 def wait_for_sim_time(t_s, timeout_s=120.0, still_running=lambda: True):
     """Block until the plant's ``/clock`` reaches ``t_s`` (a subscriber in this process, own
-    rclpy context); False if ``timeout_s`` passes or ``still_running()`` turns false first."""
+    rclpy context); False if ``timeout_s`` (scaled by the load: tests/load_scaling.py) passes
+    or ``still_running()`` turns false first."""
     import time
 
     import rclpy
@@ -102,7 +104,7 @@ def wait_for_sim_time(t_s, timeout_s=120.0, still_running=lambda: True):
             qos.clock_qos())
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
-        deadline = time.monotonic() + timeout_s
+        deadline = time.monotonic() + budget_s(timeout_s)
         while latest[0] < t_s and time.monotonic() < deadline and still_running():
             executor.spin_once(timeout_sec=0.05)
         executor.remove_node(node)

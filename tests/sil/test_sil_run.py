@@ -19,6 +19,7 @@ import pytest
 import yaml
 
 from fixture_tables import write_pd_table
+from load_scaling import budget_s
 from sil_flights import alive
 from vega_bringup import orchestrate
 from vega_cli import cli
@@ -348,13 +349,13 @@ def test_supervisor_interrupt_stops_everything(tmp_path):
         assert proc.stdout.readline() == "started\n"
         node_pids = [int(p) for p in pids.read_text().split()]
         # wait until both stand-ins have installed their SIGTERM handler (they say so)
-        deadline = time.monotonic() + 30.0
+        deadline = time.monotonic() + budget_s(30.0)
         for name in ("s0", "s1"):
             log = tmp_path / "run" / "logs" / f"{name}.log"
             while "running" not in log.read_text() and time.monotonic() < deadline:
                 time.sleep(0.01)
         proc.send_signal(sig)
-        out, _ = proc.communicate(timeout=30)
+        out, _ = proc.communicate(timeout=budget_s(30.0))
         assert out.split() == ["interrupted", "0", "0"]
         assert proc.returncode == 0
         assert not any(alive(pid) for pid in node_pids)
@@ -374,7 +375,7 @@ def test_killed_orchestrator_leaves_no_nodes(tmp_path):
     assert len(node_pids) == 2
     proc.kill()
     proc.wait()
-    deadline = time.monotonic() + 30.0
+    deadline = time.monotonic() + budget_s(30.0)
     while any(alive(pid) for pid in node_pids) and time.monotonic() < deadline:
         time.sleep(0.01)  # the orphans are reaped by init, not by us
     assert not any(alive(pid) for pid in node_pids)
@@ -389,7 +390,7 @@ def _in_small_fs(mount_point: Path, size: str, command: list[str]):
     script = (f"mount -t tmpfs -o size={size} tmpfs {mount_point} && "
               + " ".join(shlex.quote(a.replace("{fs}", str(mount_point))) for a in command))
     return subprocess.run(["unshare", "-m", "sh", "-c", script], capture_output=True,
-                          text=True, timeout=120)
+                          text=True, timeout=budget_s(120.0))
 
 
 @pytest.mark.parametrize("size, code", [("4m", 2), ("64m", 0)])

@@ -25,6 +25,7 @@ import pytest
 from rosbags.rosbag2 import Reader
 
 from fixture_tables import write_pd_table
+from load_scaling import budget_s
 from sil_flights import (alive, children_of, flight_env, run_layout_in, start_vega_sil_run,
                          vega_sil_run, wait_for_sim_time, write_short_scenario)
 from vega_bus import topics
@@ -129,7 +130,7 @@ def test_dry_run_lines_fly_when_pasted_in_any_order(tmp_path, short_scenario, pd
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
              for line in reversed(lines)]
     try:
-        errors = [proc.communicate(timeout=300)[1] for proc in procs]
+        errors = [proc.communicate(timeout=budget_s(300.0))[1] for proc in procs]
     finally:
         for proc in procs:
             if proc.poll() is None:
@@ -147,7 +148,9 @@ def test_node_death_or_interrupt_stops_everything(tmp_path, short_scenario, pd_t
     """A node killed mid-flight (SIGKILL): the run stops the others, exits 1 naming the node
     and the signal, keeps a readable bag and leaves no process behind. Ctrl-C (SIGINT) on
     ``vega sil run``: the same clean stop, exit 130. The signal comes when /clock has reached
-    12 s of the 10–14 s flight (paced to real time, so that it is still under way)."""
+    11 s of the 10–14 s flight (paced to real time: 3 s of flight still to go), and only if
+    every node still runs then (checked just before: a loaded test process that saw /clock
+    late fails here, by name, instead of signalling a run that has ended)."""
     proc = start_vega_sil_run(["--scenario", short_scenario, "--table", pd_table,
                                "--out", tmp_path, "--realtime"])
     try:
@@ -158,13 +161,14 @@ def test_node_death_or_interrupt_stops_everything(tmp_path, short_scenario, pd_t
                 break
         nodes = children_of(proc.pid)
         assert len(nodes) == len(orchestrate.PARTICIPANTS), "".join(stderr)
-        assert wait_for_sim_time(12.0, still_running=lambda: proc.poll() is None)
+        assert wait_for_sim_time(11.0, still_running=lambda: proc.poll() is None)
+        assert all(alive(pid) for pid in nodes), "the flight ended before the signal was sent"
         if victim is None:
             proc.send_signal(how)
         else:
             (pid,) = [p for p, argv in nodes.items() if argv[1].endswith(f"/{victim}")]
             os.kill(pid, how)
-        rest = proc.communicate(timeout=120)[1]
+        rest = proc.communicate(timeout=budget_s(120.0))[1]
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -205,7 +209,7 @@ def _mcap_summary_start(path):
 
 def _wait_until(condition, timeout_s):
     """Poll ``condition()`` until it is true or ``timeout_s`` passes; its last value."""
-    deadline = time.monotonic() + timeout_s
+    deadline = time.monotonic() + budget_s(timeout_s)
     while not condition() and time.monotonic() < deadline:
         time.sleep(0.02)
     return condition()
@@ -234,7 +238,7 @@ def test_stopped_recorder_still_closes_its_bag(tmp_path, short_scenario, pd_tabl
         os.kill(recorder, signal.SIGSTOP)
         assert _wait_until(lambda: _process_state(recorder) == "T", 10.0)
         proc.send_signal(signal.SIGTERM)
-        rest = proc.communicate(timeout=120)[1]
+        rest = proc.communicate(timeout=budget_s(120.0))[1]
     finally:
         if recorder is not None and alive(recorder):
             os.kill(recorder, signal.SIGCONT)
@@ -257,8 +261,8 @@ def test_stopped_recorder_still_closes_its_bag(tmp_path, short_scenario, pd_tabl
     assert 0 < truth < SHORT_FRAMES
     verdict = tmp_path / "verdict.json"
     check = subprocess.run([sys.executable, "-m", "vega_cli.cli", "check", layout.bag_dir,
-                            "--json", verdict], capture_output=True, text=True, timeout=300,
-                           check=False)
+                            "--json", verdict], capture_output=True, text=True,
+                           timeout=budget_s(300.0), check=False)
     assert check.returncode == 1, check.stdout + check.stderr
     health = {h["key"]: h for h in json.loads(verdict.read_text())["health"]}
     assert health["metadata"]["passed"], health["metadata"]
@@ -284,7 +288,7 @@ def _signal_mid_flight(args, victim: str, at_sim_s: float, sig) -> tuple[int, st
         (pid,) = found
         assert wait_for_sim_time(at_sim_s, still_running=lambda: proc.poll() is None)
         os.kill(pid, sig)
-        stderr.append(proc.communicate(timeout=180)[1])
+        stderr.append(proc.communicate(timeout=budget_s(180.0))[1])
     finally:
         if pid is not None and alive(pid):
             os.kill(pid, signal.SIGCONT)
@@ -308,15 +312,16 @@ def test_killed_recorder_bag_is_repaired(tmp_path, short_scenario, pd_table):
     layout = run_layout_in(tmp_path)
     assert not (layout.bag_dir / "metadata.yaml").exists()
     repair = subprocess.run([sys.executable, "-m", "vega_cli.cli", "bag", "repair",
-                             layout.bag_dir], capture_output=True, text=True, timeout=120)
+                             layout.bag_dir], capture_output=True, text=True,
+                            timeout=budget_s(120.0))
     assert repair.returncode == 0, repair.stderr
     truth = bagio.read_run_bag(layout.bag_dir)[topics.TRUTH.name]
     # killed at ≥ 12.5 s of a run from 10 s: at least 1.5 s of it is on disk
     assert truth["stamp_ns"][-1] >= 11.4e9 and len(truth) < SHORT_FRAMES
     verdict = tmp_path / "verdict.json"
     check = subprocess.run([sys.executable, "-m", "vega_cli.cli", "check", layout.bag_dir,
-                            "--json", verdict], capture_output=True, text=True, timeout=300,
-                           check=False)
+                            "--json", verdict], capture_output=True, text=True,
+                           timeout=budget_s(300.0), check=False)
     assert check.returncode == 1, check.stdout + check.stderr
     health = {h["key"]: h for h in json.loads(verdict.read_text())["health"]}
     assert health["metadata"]["passed"] and not health["coverage"]["passed"]
@@ -365,11 +370,14 @@ def test_full_disk_during_the_flight_is_named(tmp_path, pd_table):
         "--realtime"])
     repair = " ".join(shlex.quote(str(a)) for a in vega + ["bag", "repair"])
     script = (f"mount -t tmpfs -o size=12m tmpfs {fs} && "
-              f"(sleep 6; head -c 20000000 /dev/zero > {fs}/filler 2>/dev/null) & "
+              # the disk fills once the bag holds flushed chunks (> 200 kB: ≈ 2 s of flight):
+              # an event, not a guess of how long the start takes under load
+              f"(until [ -n \"$(find {fs}/runs -name '*.mcap' -size +200k 2>/dev/null)\" ]; "
+              f"do sleep 0.05; done; head -c 20000000 /dev/zero > {fs}/filler 2>/dev/null) & "
               f"{run}; echo \"run exit $?\"; rm -f {fs}/filler; "
               f"for b in {fs}/runs/*/bag; do {repair} $b; echo \"repair exit $?\"; done")
     result = subprocess.run(["unshare", "-m", "sh", "-c", script], capture_output=True,
-                            text=True, timeout=300, env=flight_env())
+                            text=True, timeout=budget_s(300.0), env=flight_env())
     out = result.stdout + result.stderr
     assert "run exit 1" in result.stdout or "run exit 2" in result.stdout, out
     (error,) = [line for line in result.stderr.splitlines() if "vega sil: error:" in line]
@@ -388,10 +396,10 @@ def test_malformed_table_in_the_node_names_it(tmp_path, short_scenario):
     layout.run_dir.mkdir()
     params = orchestrate.RunParameters(
         scenario=str(short_scenario), seed=-1, realtime=False, controller_table=str(bad),
-        bag_path=str(layout.bag_dir), barrier_timeout_s=30.0)
+        bag_path=str(layout.bag_dir), barrier_timeout_s=budget_s(30.0))
     layout.params_file.write_text(orchestrate.params_yaml(params))
     sup = orchestrate.Supervisor(_real_nodes(layout), layout, flight_env(),
-                                 barrier_timeout_s=30.0)
+                                 barrier_timeout_s=params.barrier_timeout_s)
     outcome = sup.run()
     assert outcome.status == "bad_input"
     assert outcome.message.startswith(
