@@ -563,7 +563,15 @@ def run_node(name: str, body: Callable[[Shell], int | None], argv: list[str] | N
     :class:`~vega_core.errors.BadInput` and ``OSError`` into one line and exit 2. Any other
     exception is a defect: its traceback, then one line naming its type, exit 1 (the last
     line is what the orchestrator reports).
+
+    Without ``argv`` (the node's executable: its ``main`` passes none) the process ends here,
+    with the code, once stdout and stderr are flushed (:func:`os._exit`): the interpreter's
+    own teardown — finalising every module, numba's LLVM, rclpy — takes 0.3–0.7 s and holds
+    nothing of the run (the bag is closed, the middleware shut down), while the run waits for
+    the last node to exit (docs/SIL_SPEED.md). With ``argv`` (a test, in-process), the code
+    is returned.
     """
+    entry_point = argv is None
     argv = sys.argv if argv is None else argv
     shell = None
     code = EXIT_OK
@@ -594,6 +602,8 @@ def run_node(name: str, body: Callable[[Shell], int | None], argv: list[str] | N
             _close_with_watchdog(name, shell, code)
     sys.stdout.flush()
     sys.stderr.flush()
+    if entry_point:
+        os._exit(code)
     return code
 
 
