@@ -579,6 +579,9 @@ class Supervisor:
         Subscribe to ``/vega/ready`` to name the nodes missing at a barrier timeout.
     progress
         Called with one-line status messages (default: nothing).
+    on_flight
+        Called once, without arguments, when the start barrier is complete and the flight
+        begins (e.g. to prepare the report while the nodes fly; default: nothing).
 
     Use :meth:`run` (start → barrier → flight → stop); it never leaves a process behind.
     """
@@ -587,8 +590,10 @@ class Supervisor:
                  env: Mapping[str, str], *, participants: Sequence[str] | None = None,
                  barrier_timeout_s: float = DEFAULT_BARRIER_TIMEOUT_S,
                  watch_barrier: bool = True,
-                 progress: Callable[[str], None] | None = None):
+                 progress: Callable[[str], None] | None = None,
+                 on_flight: Callable[[], None] | None = None):
         self.nodes = [(spec, list(command)) for spec, command in nodes]
+        self.on_flight = on_flight or (lambda: None)
         self.layout = layout
         self.env = dict(env)
         self.participants = tuple(participants if participants is not None
@@ -860,6 +865,7 @@ class Supervisor:
                 t_barrier = time.monotonic()
                 self.progress(f"start barrier complete after {t_barrier - t_start:.1f} s: "
                               f"{', '.join(self.participants)}; flying")
+                self.on_flight()
                 outcome = self.wait_flight(watcher)
         except (KeyboardInterrupt, _Terminated) as exc:
             what = "Ctrl-C" if isinstance(exc, KeyboardInterrupt) else str(exc)
