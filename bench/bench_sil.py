@@ -1,78 +1,146 @@
-"""Benchmark: real-time factor of a whole SIL flight, every node its own process.
+"""Benchmark: ``vega sil run`` as a whole command, phase by phase, against a baseline revision.
 
 Usage: .venv/bin/vega-env python bench/bench_sil.py [--scenario NAME] [--table TABLE.npz]
-       [--repeat N]
+       [--repeat N] [--baseline REV]
 
 Runs ``vega sil run`` (the real command line, five node processes, lockstep over Fast DDS on
 localhost) on the scenario (default ``nominal``: the whole 0–100 s flight on the nonlinear
-plant) and reports, per run: the wall time from the start barrier to the last node's exit
-(the flight), the real-time factor = simulated span / that wall time (and the plant's own
-figure from its log: first to last frame), the start-up time (process start to barrier) and the
-whole command's wall time (start-up, flight, report). Without
-``--table`` the installed ``lpv_controller.npz`` is flown if it exists, else the PD fixture
-table of tests/fixture_tables.py (the controller's cost per step hardly depends on the table).
+plant) and times, from the moment the command is started, the lines it writes on stderr:
+
+* ``validate``: to the line naming the scenario (imports, arguments, scenario, table and its
+  frozen loops checked, the ROS domain probed);
+* ``barrier``: from there to the start barrier (nodes started, imported, discovered);
+* ``flight``: from the barrier to the line ``flew …`` (every node has exited: the flight, the
+  end of the run and the nodes' exit);
+* ``report``: from there to the report line (bag read, checked, plots written);
+* ``exit``: from there to the end of the process;
+* ``total``: the whole command, and the real-time factor = simulated span / total.
+
+With ``--baseline REV`` (e.g. the commit before a change) the same runs are made with the
+packages this benchmark is about (vega_bus, vega_plant, vega_bags, vega_bringup, vega_cli) of
+that revision — extracted with ``git archive`` into a temporary directory and put first on
+PYTHONPATH for the command and its nodes — alternating with the working tree's, run by run,
+so that both see the same load; the medians and the ratios baseline / current are printed
+per phase. (The other packages, the messages and numba's cache are shared.) The command runs
+as ``python -m vega_cli.cli`` in both cases: the ``vega`` wrapper's own start (``source
+tools/env.bash``, ≈ 0.1–0.3 s) is not in these figures. The load average is printed before and
+after. Without ``--table`` the installed ``tvc_controller.npz`` (the default table) is flown.
 The run directories go to a temporary directory that is removed afterwards.
 """
 
 import argparse
-import re
+import os
+import statistics
 import subprocess
 import sys
+import tarfile
 import tempfile
+import threading
 import time
+from io import BytesIO
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-INSTALLED = ROOT / "ros2_ws/src/vega_gnc/config/lpv_controller.npz"
-_FLEW = re.compile(r"flew (?P<span>[\d.]+) s in (?P<wall>[\d.]+) s wall")
-_BARRIER = re.compile(r"start barrier complete after (?P<wall>[\d.]+) s")
-_CPU = re.compile(r"node CPU time \(start-up included\): (?P<text>.*)")
-_PLANT = re.compile(r"plant: flew [\d.]+ s in (?P<wall>[\d.]+) s wall")
+PACKAGES = ("vega_bus", "vega_plant", "vega_bags", "vega_bringup", "vega_cli")
+PHASES = ("validate", "barrier", "flight", "report", "exit", "total")
+_MARKS = (("validate", "vega sil: scenario "), ("barrier", "start barrier complete"),
+          ("flight", "vega sil: flew "), ("report", "vega sil: report "))
 
 
-def _table(argument, scratch):
-    """The controller table to fly (argument, installed, or the PD fixture)."""
-    if argument:
-        return Path(argument), "given"
-    if INSTALLED.is_file():
-        return INSTALLED, "installed LPV table"
-    sys.path.insert(0, str(ROOT / "tests"))
-    from fixture_tables import write_pd_table
+def _baseline_tree(rev: str, scratch: Path) -> list[str]:
+    """Extract the :data:`PACKAGES` of ``rev`` under ``scratch``; their PYTHONPATH entries."""
+    paths = [f"ros2_ws/src/{name}/{name}" for name in PACKAGES]
+    data = subprocess.run(["git", "-C", str(ROOT), "archive", rev, *paths],
+                          capture_output=True, check=True).stdout
+    with tarfile.open(fileobj=BytesIO(data)) as tar:
+        tar.extractall(scratch, filter="data")
+    return [str(scratch / "ros2_ws" / "src" / name) for name in PACKAGES]
 
-    return write_pd_table(Path(scratch) / "pd.npz").path, "PD fixture table"
+
+def _run(args, table, out, run_id, pythonpath):
+    """One ``vega sil run``; {phase: seconds}, exit status, stderr."""
+    env = dict(os.environ)
+    if pythonpath:
+        env["PYTHONPATH"] = os.pathsep.join([*pythonpath, env.get("PYTHONPATH", "")])
+    command = [sys.executable, "-m", "vega_cli.cli", "sil", "run", "--scenario", args.scenario,
+               "--table", str(table), "--out", str(out), "--run-id", run_id]
+    t0 = time.monotonic()
+    proc = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True, bufsize=1)
+    marks, lines = {}, []
+
+    def read():
+        for line in proc.stderr:
+            now = time.monotonic() - t0
+            lines.append(line)
+            for phase, text in _MARKS:
+                if phase not in marks and text in line:
+                    marks[phase] = now
+
+    reader = threading.Thread(target=read)
+    reader.start()
+    proc.wait()
+    total = time.monotonic() - t0
+    reader.join()
+    stderr = "".join(lines)
+    if proc.returncode not in (0, 1) or len(marks) != len(_MARKS):
+        sys.exit(f"bench_sil: run failed (exit {proc.returncode}):\n{stderr}")
+    times, last = {}, 0.0
+    for phase, _ in _MARKS:
+        times[phase] = marks[phase] - last
+        last = marks[phase]
+    times["exit"] = total - last
+    times["total"] = total
+    return times, proc.returncode, stderr
+
+
+def _line(label, times, span_s):
+    return (f"{label:9s} " + "  ".join(f"{p} {times[p]:5.2f}" for p in PHASES)
+            + f"  = {span_s / times['total']:4.1f}x real time")
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--scenario", default="nominal")
     parser.add_argument("--table", default=None)
-    parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--baseline", default=None, metavar="REV")
     args = parser.parse_args()
+    sys.path.insert(0, str(ROOT / "ros2_ws/src/vega_sim"))
+    from vega_sim.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    span_s = scenario.t_end_s - scenario.t_start_s
     with tempfile.TemporaryDirectory(prefix="bench_sil_") as scratch:
-        table, kind = _table(args.table, scratch)
-        print(f"bench_sil: scenario {args.scenario}, {kind} ({table})")
-        for run in range(args.repeat):
-            t0 = time.perf_counter()
-            result = subprocess.run(
-                [sys.executable, "-m", "vega_cli.cli", "sil", "run", "--scenario",
-                 args.scenario, "--table", str(table), "--out", scratch, "--run-id",
-                 f"run{run}"], capture_output=True, text=True, check=False)
-            total = time.perf_counter() - t0
-            flew, barrier = _FLEW.search(result.stderr), _BARRIER.search(result.stderr)
-            if result.returncode not in (0, 1) or flew is None:
-                sys.exit(f"bench_sil: run failed (exit {result.returncode}):\n{result.stderr}")
-            span, wall = float(flew["span"]), float(flew["wall"])
-            plant_log = Path(scratch) / f"run{run}" / "logs" / "plant.log"
-            plant = _PLANT.search(plant_log.read_text()) if plant_log.is_file() else None
-            plant_text = (f"; the plant's own loop {span / float(plant['wall']):.1f}x"
-                          if plant else "")
-            print(f"run {run + 1}: {span:g} s flight in {wall:.2f} s wall = {span / wall:.1f}x "
-                  f"real time (barrier to the last node's exit{plant_text}); start-up "
-                  f"{float(barrier['wall']):.1f} s; whole command {total:.1f} s "
-                  f"(exit {result.returncode})")
-            cpu = _CPU.search(result.stderr)
-            if cpu:
-                print(f"       CPU: {cpu['text']}")
+        scratch = Path(scratch)
+        table = Path(args.table) if args.table else (
+            ROOT / "ros2_ws/src/vega_gnc/config/tvc_controller.npz")
+        variants = [("current", [])]
+        if args.baseline:
+            variants.insert(0, (f"base {args.baseline[:7]}",
+                                _baseline_tree(args.baseline, scratch / "baseline")))
+        print(f"bench_sil: scenario {args.scenario} ({span_s:g} s), table {table}, "
+              f"{args.repeat} run(s) per variant; load average {os.getloadavg()[0]:.2f}")
+        results = {label: [] for label, _ in variants}
+        # one warm-up run per variant (numba cache, page cache), not counted
+        for label, path in variants:
+            _run(args, table, scratch / "runs", f"warm-{len(results[label])}-{label[:4]}", path)
+        for i in range(args.repeat):
+            for label, path in variants:
+                times, code, _ = _run(args, table, scratch / "runs", f"r{i}-{label[:4]}", path)
+                results[label].append(times)
+                print(_line(f"{label[:9]}", times, span_s)
+                      + f"  (exit {code}, load {os.getloadavg()[0]:.2f})", flush=True)
+        print("medians:")
+        medians = {label: {p: statistics.median(t[p] for t in runs) for p in PHASES}
+                   for label, runs in results.items()}
+        for label, med in medians.items():
+            print(_line(label[:9], med, span_s))
+        if args.baseline:
+            base, cur = medians[variants[0][0]], medians["current"]
+            print("ratio base/current: " + "  ".join(
+                f"{p} {base[p] / cur[p]:.2f}" for p in PHASES if cur[p] > 0))
+        print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":
