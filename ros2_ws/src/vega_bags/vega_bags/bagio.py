@@ -835,8 +835,8 @@ def read_run_bag(path: str | Path) -> RunBag:
     ------
     BagError
         One line: missing path, not a rosbag2 directory, unreadable or truncated storage,
-        undecodable message, or a foreign bag (no vega topic, or a vega topic with another
-        message type).
+        undecodable message, a message count in metadata.yaml that is not the file's, or a
+        foreign bag (no vega topic, or a vega topic with another message type).
     """
     path = Path(path)
     store = vega_typestore()
@@ -847,6 +847,12 @@ def read_run_bag(path: str | Path) -> RunBag:
         for conn, log_time, data in _messages(path, reader, list(wanted.values())):
             raw[conn.topic].append(data)
             times[conn.topic].append(log_time)
+    for name, conn in wanted.items():
+        # metadata.yaml is outside the MCAP CRCs: its counts must be the file's (what
+        # `ros2 bag info` and other rosbag2 tools show)
+        if conn.msgcount != len(raw[name]):
+            raise BagError(f"bag {path}: metadata.yaml lists {conn.msgcount} messages on "
+                           f"{name}, the MCAP file holds {len(raw[name])}")
     loaded = {}
     for name, conn in wanted.items():
         cols, counts = _decode_topic(store, path, name, conn.msgtype, raw[name])
