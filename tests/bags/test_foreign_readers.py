@@ -245,6 +245,20 @@ def test_channels_carry_the_rosidl_type_hash(bag):
     check_type_hashes(bag)
 
 
+def test_starting_time_and_duration_are_the_files(bag):
+    """metadata.yaml's starting_time is the first message's log time (simulation time since
+    lift-off, the run's t_start: docs convention) and its duration the span to the last one, as
+    the MCAP summary statistics state them."""
+    with open(_mcap(bag), "rb") as f:
+        stats = make_reader(f).get_summary().statistics
+    info = _info(bag)
+    assert stats.message_start_time == int(SPAN_S[0] * 1e9)
+    assert info["starting_time"]["nanoseconds_since_epoch"] == stats.message_start_time
+    assert info["duration"]["nanoseconds"] == stats.message_end_time - stats.message_start_time
+    (entry,) = info["files"]
+    assert entry["starting_time"]["nanoseconds_since_epoch"] == stats.message_start_time
+
+
 def test_file_order_and_crcs(bag, written):
     assert check_file_order_and_crcs(bag) == len(written[1])
 
