@@ -497,6 +497,19 @@ nominal 96–100 s already at 90 s. Tuned per time, the 96–100 s controllers (
 phase-stabilised at low thrust) made 28 % of the Monte Carlo flights unstable near 90 s.
 The parameters tuned at 86 s alone, held, met every requirement from 86 to 99 s but left
 PM 28.4° at 100 s; tuned jointly, 34.95°."""
+DRIFT_SCALE_FROM_S = 70.0
+"""Step 6 of :func:`design_flight` scales the drift-rate gain k_ż of every grid time from here
+on (s): after max-Q (47.5 s, 60.1 kPa) the dynamic pressure has fallen to 52 % of its peak at 70 s
+and keeps falling, so drift feedback there costs little load (docs/FLIGHT_DESIGN.md §7: the
+load/drift trade it was chosen from)."""
+DRIFT_RATE_SCALE = 2.0
+"""The factor on k_ż from :data:`DRIFT_SCALE_FROM_S` on (dimensionless; chosen from the trade
+of docs/FLIGHT_DESIGN.md §7: the tuning sets k_ż for margins only, and the Monte Carlo
+campaign's drift-rate failures are all late in the flight, in winds half the design wind)."""
+DRIFT_RATE_INDEX = 2
+"""Position of k_ż [mrad/(m/s)] in the parameter vector (:data:`PARAMETERS`)."""
+
+
 START_X = (-0.047, -0.153, 0.18, -6.6, 1.165, 0.35, 0.862, 0.042, 1.2, 0.939, 0.297, 0.113,
            1.215, 0.2)
 """Initial member of every anchor's population (a max-Q tuning; any point of the box works,
@@ -554,6 +567,16 @@ def misses_requirement(detail) -> bool:
             or detail.get("bending_exact_violations", 0) > 0)
 
 
+def requirement_misses(detail) -> tuple[int, int, int, int, int]:
+    """The requirement misses of a tuned point as counts (PM < 30°, GM low < 6 dB, GM high
+    < 6 dB, unstable design plants, design plants missing the exact bending criterion): what
+    :func:`misses_requirement` tests, kept apart so that two points can be compared."""
+    gm = REQUIREMENTS["gm_db"]
+    return (int(detail["pm_deg"] < REQUIREMENTS["pm_deg"]), int(detail["gm_low_db"] < gm),
+            int(detail["gm_high_db"] < gm), int(detail["n_unstable"]),
+            int(detail.get("bending_exact_violations", 0)))
+
+
 def _interval_task(args):
     """Walk the grid times strictly between two tuned anchors, left to right: start from the
     better of the interpolated parameters and the previous point's (continuation), and re-tune
@@ -583,7 +606,8 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
                   popsize: int = 10, workers: int = 2,
                   progress: Callable[[str], None] = print, polish_maxfev: int = 1500,
                   local_maxiter: int = 30, anchor_x: Mapping[float, Sequence[float]] | None = None,
-                  check_between: bool = True, repair: bool = False) -> StructuredDesign:
+                  check_between: bool = True, repair: bool = False,
+                  drift_scale: float = DRIFT_RATE_SCALE) -> StructuredDesign:
     """Tune the whole flight.
 
     1. The anchors: differential evolution from scratch (``maxiter`` generations; in
@@ -599,6 +623,8 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
        with its neighbours); repeated once for the new midpoints.
     5. From :data:`TAIL_OFF_HOLD_S` on, one controller (the tail-off), tuned jointly on the
        design sets of :data:`TAIL_DESIGN_TIMES_S` (:func:`hold_tail`).
+    6. The drift-rate gain × ``drift_scale`` from :data:`DRIFT_SCALE_FROM_S` on, where the
+       scaled point still meets every requirement (:func:`scale_drift`).
 
     With ``repair``, the given ``anchor_x`` (e.g. every grid point of an earlier table) are
     kept where they meet every requirement and go through step 3 where they do not: a repair
@@ -683,6 +709,8 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
     # 5. the tail-off: one controller from TAIL_OFF_HOLD_S on, tuned on all its times jointly
     if TAIL_OFF_HOLD_S in done:
         done = hold_tail(context, done, seed=seed + 4000, progress=progress)
+    # 6. the drift-rate gain after max-Q (load/drift split by dynamic pressure)
+    done = scale_drift(context, done, drift_scale, progress=progress)
     grid_t = np.array(sorted(done))
     xs = np.array([done[float(t)][0] for t in grid_t])
     details = [done[float(t)][1] for t in grid_t]
@@ -691,6 +719,7 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
                             {"seed": seed, "maxiter": maxiter, "local_maxiter": local_maxiter,
                              "popsize": popsize, "polish_maxfev": polish_maxfev,
                              "grid_step_s": grid_step_s,
+                             "drift": {"factor": drift_scale, "from_s": DRIFT_SCALE_FROM_S},
                              "how": {f"{t:g}": done[float(t)][2] for t in grid_t}})
 
 
@@ -743,6 +772,88 @@ def retune_tail(context, grid_times_s, xs, anchors_s, tuning: Mapping, seed: int
                                               for t in grid_t]),
                             np.array([done[float(t)][0] for t in grid_t]),
                             [done[float(t)][1] for t in grid_t], tuple(anchors_s), record)
+
+
+def scale_drift(context, done: Mapping[float, tuple], factor: float = DRIFT_RATE_SCALE,
+                from_s: float = DRIFT_SCALE_FROM_S,
+                progress: Callable[[str], None] | None = None) -> dict:
+    """Step 6 of :func:`design_flight`: the drift-rate gain k_ż × ``factor`` at every grid
+    time from ``from_s`` on (``done`` maps time → (x, detail, how); returns the updated copy).
+
+    A scaled point is kept only where it adds no requirement miss to the unscaled one
+    (:func:`requirement_misses`, on its design set) and neither does the flown controller
+    midway to its left neighbour; elsewhere the unscaled parameters stay (reported through
+    ``progress``). (Not "meets every requirement": a few grid points of the shipped table miss
+    the exact bending criterion at a dispersed corner unscaled already, docs/FLIGHT_DESIGN.md
+    §6.4.) Raises ValueError when the scaled gain leaves the search box of :data:`PARAMETERS`."""
+    from vega_model.uncertainty import UncertaintySet
+
+    if not math.isfinite(factor) or factor <= 0.0:
+        raise ValueError(f"scale_drift: factor {factor!r} must be finite and > 0")
+    uset = UncertaintySet.from_vehicle(context.vehicle)
+    original = dict(done)
+    done = dict(done)
+    times = sorted(done)
+
+    def no_worse(scaled_detail, unscaled_detail) -> bool:
+        return all(a <= b for a, b in zip(requirement_misses(scaled_detail),
+                                          requirement_misses(unscaled_detail)))
+
+    for k, t in enumerate(times):
+        if t < from_s - 1e-9:
+            continue
+        x, _, how = done[t]
+        scaled = np.array(x, dtype=float)
+        scaled[DRIFT_RATE_INDEX] *= factor
+        lo, hi = LOWER[DRIFT_RATE_INDEX], UPPER[DRIFT_RATE_INDEX]
+        if not lo <= scaled[DRIFT_RATE_INDEX] <= hi:
+            raise ValueError(f"scale_drift: k_zdot {scaled[DRIFT_RATE_INDEX]:.3f} mrad/(m/s) "
+                             f"at {t:g} s leaves its range [{lo:g}, {hi:g}]")
+        ds = design_set(context, t, uset)
+        cost, detail = evaluate(scaled, ds, detail=True)
+        ok = no_worse(detail, evaluate(x, ds, detail=True)[1])
+        if ok and k > 0:
+            left = times[k - 1]
+            mid_s = 0.5 * (left + t)
+            mid_set = design_set(context, mid_s, uset)
+            flown = flown_between(context, (left, done[left][0]), (t, scaled), mid_s)
+            before = flown_between(context, (left, original[left][0]), (t, x), mid_s)
+            ok = no_worse(evaluate_discrete(flown, mid_set, detail=True)[1],
+                          evaluate_discrete(before, mid_set, detail=True)[1])
+        if ok:
+            done[t] = (scaled, detail, f"{how}; k_zdot x {factor:g} (drift, step 6)")
+        if progress is not None:
+            progress(_line(f"drift x{factor:g}" if ok else "drift unscaled (scaled misses more)",
+                           t, cost, detail))
+    return done
+
+
+def rescale_drift(context, grid_times_s, xs, anchors_s, tuning: Mapping,
+                  factor: float = DRIFT_RATE_SCALE,
+                  progress: Callable[[str], None] | None = None) -> StructuredDesign:
+    """An earlier design with only step 6 applied (:func:`scale_drift`): ``vega design
+    --drift-from TABLE``. Raises ValueError when the design's tuning record says its drift gain
+    was already scaled (scaling twice would compound the factor)."""
+    if "drift" in tuning:
+        raise ValueError(f"rescale_drift: the drift-rate gain of this design was already scaled "
+                         f"({tuning['drift']})")
+    done = {float(t): (np.asarray(x, dtype=float), None, "given")
+            for t, x in zip(grid_times_s, xs)}
+    done = scale_drift(context, done, factor, progress=progress)
+    grid_t = np.array(sorted(done))
+    record = dict(tuning)
+    record["drift"] = {"factor": factor, "from_s": DRIFT_SCALE_FROM_S}
+    record["how"] = {f"{t:g}": done[float(t)][2] for t in grid_t}
+    from vega_model.uncertainty import UncertaintySet
+
+    uset = UncertaintySet.from_vehicle(context.vehicle)
+    details = [done[float(t)][1] or evaluate(done[float(t)][0],
+                                             design_set(context, float(t), uset),
+                                             detail=True)[1] for t in grid_t]
+    return StructuredDesign(grid_t, np.array([context.parameters(float(t)).v_mps
+                                              for t in grid_t]),
+                            np.array([done[float(t)][0] for t in grid_t]), details,
+                            tuple(anchors_s), record)
 
 
 def flown_between(context, left, right, t_s: float):

@@ -66,3 +66,20 @@ def test_tail_without_its_hold_time_is_refused(tmp_path, capsys):
     assert_refused(["design", "--out", str(tmp_path / "t.npz"), "--tail-from", str(table)],
                    capsys, "no grid point at the tail-off hold time 86 s")
     assert not (tmp_path / "t.npz").exists()
+
+
+def test_drift_already_scaled_is_refused(tmp_path, capsys):
+    """--drift-from on a table whose drift-rate gain was already scaled (its tuning record says
+    so): one line, exit 2 — scaling twice would compound the factor."""
+    table = _shipped_with(tmp_path, lambda meta: meta["solver"].update(
+        drift={"factor": 2.0, "from_s": 70.0}))
+    assert_refused(["design", "--out", str(tmp_path / "t.npz"), "--drift-from", str(table)],
+                   capsys, "its drift-rate gain was already scaled")
+    assert not (tmp_path / "t.npz").exists()
+
+
+def test_drift_and_tail_together_are_refused(tmp_path, capsys):
+    """--drift-from is one of the mutually exclusive sources."""
+    assert_refused(["design", "--out", str(tmp_path / "t.npz"), "--tail-from", str(LPV),
+                    "--drift-from", str(LPV)], capsys,
+                   "--tail-from and --drift-from: give one of them")

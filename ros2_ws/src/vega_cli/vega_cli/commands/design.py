@@ -11,7 +11,8 @@ anchors took ≈ 25 min, the grid walk ≈ 13 min, rescue and added points ≈ 2
 ``--anchors-from TABLE`` reuses an earlier table's anchors and re-tunes only the grid;
 ``--repair-from TABLE`` keeps every grid point of an earlier table that meets the current
 requirements and re-tunes the others; ``--tail-from TABLE`` keeps every grid point before the
-tail-off and re-tunes only the one tail-off controller, jointly over 86–100 s) and verify it
+tail-off and re-tunes only the one tail-off controller, jointly over 86–100 s; ``--drift-from
+TABLE`` applies only the last step, the drift-rate gain after max-Q) and verify it
 with ``vega margins --dispersed`` and ``vega robust``. Exit 0, or 2 on bad input.
 """
 
@@ -33,7 +34,8 @@ def _run(args: argparse.Namespace) -> int:
 
     from offline_synthesis.margins import json_ready
     from offline_synthesis.structured import (
-        PARAMETERS, TAIL_OFF_HOLD_S, design_flight, retune_tail, write_structured_table,
+        PARAMETERS, TAIL_OFF_HOLD_S, design_flight, rescale_drift, retune_tail,
+        write_structured_table,
     )
 
     out = npz_out(args.out)
@@ -44,10 +46,11 @@ def _run(args: argparse.Namespace) -> int:
     anchor_x = None
     given = [o for o, v in (("--anchors-from", args.anchors_from),
                             ("--repair-from", args.repair_from),
-                            ("--tail-from", args.tail_from)) if v]
+                            ("--tail-from", args.tail_from),
+                            ("--drift-from", args.drift_from)) if v]
     if len(given) > 1:
         raise BadArgument(f"{' and '.join(given)}: give one of them")
-    source_path = args.anchors_from or args.repair_from or args.tail_from
+    source_path = args.anchors_from or args.repair_from or args.tail_from or args.drift_from
     option = given[0] if given else None
     if source_path:
         from vega_gnc.controller_table import load_controller_table
@@ -59,7 +62,7 @@ def _run(args: argparse.Namespace) -> int:
             raise BadArgument(f"{option} {source_path}: not a structured design "
                               "table (no tuned parameters in its metadata)")
         by_time = dict(zip(meta["grid_times_s"], meta["parameters_per_grid_time"]))
-        grid = args.repair_from or args.tail_from
+        grid = args.repair_from or args.tail_from or args.drift_from
         used = meta["grid_times_s"] if grid else meta["anchors_s"]
         if any(t not in by_time or len(by_time[t]) != len(PARAMETERS) for t in used):
             raise BadArgument(f"{option} {source_path}: its "
@@ -68,13 +71,21 @@ def _run(args: argparse.Namespace) -> int:
         if args.tail_from and TAIL_OFF_HOLD_S not in by_time:
             raise BadArgument(f"--tail-from {source_path}: no grid point at the tail-off "
                               f"hold time {TAIL_OFF_HOLD_S:g} s")
+        if args.drift_from and "drift" in meta.get("solver", {}):
+            raise BadArgument(f"--drift-from {source_path}: its drift-rate gain was already "
+                              f"scaled ({meta['solver']['drift']}); scaling twice compounds")
         anchor_x = {float(t): by_time[t] for t in used}
     start = time.perf_counter()
     context = default_context()
     kwargs = {"anchors_s": sorted(anchor_x)} if args.repair_from else {}
-    if args.tail_from:
+    if args.tail_from or args.drift_from:
         tuning = {k: v for k, v in meta.get("solver", {}).items()
                   if k not in ("method", "scipy")}
+    if args.drift_from:
+        design = rescale_drift(context, sorted(anchor_x),
+                               [anchor_x[t] for t in sorted(anchor_x)], meta["anchors_s"],
+                               tuning, progress=lambda line: print(line, flush=True))
+    elif args.tail_from:
         design = retune_tail(context, sorted(anchor_x), [anchor_x[t] for t in sorted(anchor_x)],
                              meta["anchors_s"], tuning, seed=args.seed + 4000,
                              progress=lambda line: print(line, flush=True))
@@ -121,6 +132,11 @@ def register(subparsers) -> None:
                    help="keep every grid point of an earlier structured table before the "
                         "tail-off hold time (86 s) and re-tune only the one tail-off "
                         "controller, jointly over 86-100 s (≈ 15 min on one core)")
+    p.add_argument("--drift-from", metavar="TABLE",
+                   help="keep every grid point of an earlier structured table and apply only "
+                        "the last design step, the drift-rate gain scaled after max-Q where "
+                        "the scaled point still meets every requirement (docs/FLIGHT_DESIGN.md "
+                        "section 4, step 6; a few minutes)")
     p.add_argument("--workers", type=int, default=2,
                    help="processes for the anchors (default 2; 0 = in this process)")
     p.set_defaults(func=_run)
