@@ -185,6 +185,21 @@ def _recorder(shell: Shell) -> None:
     participants, barrier_timeout = shell.common_params()
     if Path(bag_path).exists():
         raise NodeExit(EXIT_BAD_INPUT, f"bag {bag_path}: exists already, not overwriting")
+
+    # entities first (subscriptions, progress, the barrier's), then the bag is opened while
+    # discovery runs; no message arrives before the barrier, so the writer is there by then
+    expected = info.expected_counts()
+    counts = {name: 0 for name in expected}
+    progress = node.create_publisher(UInt32, topics.RECORDED.name, qos.data_qos())
+    writer = None
+    reorder = Reorder(lambda topic, t, data: writer.write(topic, t, data), expected)
+    for topic in topics.ALL_TOPICS:
+        profile = qos.clock_qos() if topic is topics.CLOCK else qos.data_qos()
+        callback = _writer_callback(reorder, topic.name, topic.type_name, counts,
+                                    progress if topic is topics.TRUTH else None)
+        shell.checked_subscription(topics.message_class(topic.type_name), topic.name,
+                                   callback, profile, raw=True)
+    barrier = shell.open_barrier(participants, [progress])
     try:
         if not table:
             from vega_gnc.controller_table import default_table_path
@@ -202,18 +217,8 @@ def _recorder(shell: Shell) -> None:
     except (BadInput, OSError) as exc:
         raise NodeExit(EXIT_BAD_INPUT, one_line(exc)) from None
 
-    expected = info.expected_counts()
-    counts = {name: 0 for name in expected}
-    progress = node.create_publisher(UInt32, topics.RECORDED.name, qos.data_qos())
-    reorder = Reorder(writer.write, expected)
     try:
-        for topic in topics.ALL_TOPICS:
-            profile = qos.clock_qos() if topic is topics.CLOCK else qos.data_qos()
-            callback = _writer_callback(reorder, topic.name, topic.type_name, counts,
-                                        progress if topic is topics.TRUTH else None)
-            shell.checked_subscription(topics.message_class(topic.type_name), topic.name,
-                                       callback, profile, raw=True)
-        shell.barrier(participants, [progress], barrier_timeout)
+        shell.barrier(participants, [progress], barrier_timeout, opened=barrier)
         shell.batch_s = RECORDER_BATCH_S
         shell.wait_until(lambda: counts == expected,
                          lambda: "messages " + ", ".join(

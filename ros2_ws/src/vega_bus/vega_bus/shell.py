@@ -417,14 +417,22 @@ class Shell:
         self.stall_timeout_s = self.param("stall_timeout_s")
         return participants, timeout
 
-    def barrier(self, participants, publishers, timeout_s: float):
-        """Run the start barrier (:class:`vega_bus.barrier.StartBarrier`) for ``publishers``
-        and every subscription of the node; :class:`NodeExit` (1) naming the missing
-        participants on timeout."""
+    def open_barrier(self, participants, publishers):
+        """Create the start barrier's entities (:class:`vega_bus.barrier.StartBarrier`) for
+        ``publishers`` and every subscription of the node, without waiting: a node that
+        creates its publishers, subscriptions and this first, then does its slow set-up
+        (parameter tracks, the plant), lets DDS discovery run meanwhile in the middleware's
+        threads (docs/SIL_SPEED.md); :meth:`barrier` with ``opened=`` then waits."""
         from vega_bus.barrier import StartBarrier
 
-        barrier = StartBarrier(self.node, participants, publishers,
-                               [s for s in self.node.subscriptions])
+        return StartBarrier(self.node, participants, publishers,
+                            [s for s in self.node.subscriptions])
+
+    def barrier(self, participants, publishers, timeout_s: float, opened=None):
+        """Run the start barrier (:class:`vega_bus.barrier.StartBarrier`) for ``publishers``
+        and every subscription of the node (or the one :meth:`open_barrier` created:
+        ``opened``); :class:`NodeExit` (1) naming the missing participants on timeout."""
+        barrier = opened if opened is not None else self.open_barrier(participants, publishers)
         if not barrier.wait(self.spin_once, timeout_s):
             raise NodeExit(EXIT_RUN_FAILURE, barrier.describe_missing())
         self._barrier_passed = True

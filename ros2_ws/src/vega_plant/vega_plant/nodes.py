@@ -81,18 +81,20 @@ def _plant(shell: Shell) -> None:
     scenario, seed, info = load_run(shell)
     realtime = shell.param("realtime")
     participants, barrier_timeout = shell.common_params()
-    try:
-        plant = make_plant(scenario, seed=seed)
-    except BadInput as exc:
-        raise NodeExit(EXIT_BAD_INPUT, one_line(exc)) from None
 
+    # entities first, the plant's set-up (its parameter track) while discovery runs
     run_pub = node.create_publisher(String, topics.RUN.name, qos.control_qos())
     run_pub.publish(String(data=info.to_json()))
     truth_pub = node.create_publisher(VehicleState, topics.TRUTH.name, qos.data_qos())
     clock_pub = node.create_publisher(Clock, topics.CLOCK.name, qos.clock_qos())
     frames = shell.inbox(ActuatorState, topics.ACTUATOR.name, qos.data_qos())
     recorded = shell.recorder_progress(participants)   # back-pressure (vega_bus.schedule)
-    shell.barrier(participants, [truth_pub, clock_pub], barrier_timeout)
+    barrier = shell.open_barrier(participants, [truth_pub, clock_pub])
+    try:
+        plant = make_plant(scenario, seed=seed)
+    except BadInput as exc:
+        raise NodeExit(EXIT_BAD_INPUT, one_line(exc)) from None
+    shell.barrier(participants, [truth_pub, clock_pub], barrier_timeout, opened=barrier)
     startup_s = _process_age_s()
 
     msg, clock = VehicleState(), Clock()
@@ -158,6 +160,11 @@ def _ins(shell: Shell) -> None:
     node = shell.node
     scenario, seed, info = load_run(shell)
     participants, barrier_timeout = shell.common_params()
+    # entities first, the set-up below while discovery runs
+    pub = node.create_publisher(InsMeasurement, topics.INS.name, qos.data_qos())
+    truths = shell.inbox(VehicleState, topics.TRUTH.name, qos.data_qos())
+    recorded = shell.recorder_progress(participants)
+    barrier = shell.open_barrier(participants, [pub])
     ins = make_ins(scenario, seed=seed)
     # the parameters at every frame start, as the plant and the in-process run hold them
     # (evaluated before the barrier, ≈ 0.2 s, instead of ≈ 20 µs per frame in flight)
@@ -165,10 +172,7 @@ def _ins(shell: Shell) -> None:
     params_at = parameter_track(default_context(), info.t_start_ms, info.t_end_ms,
                                 frame_ms=t.frame_ms, refresh_ms=t.frame_ms,
                                 dt_ms=t.physics_dt_ms, deviations=scenario.deviations).at_ms
-    pub = node.create_publisher(InsMeasurement, topics.INS.name, qos.data_qos())
-    truths = shell.inbox(VehicleState, topics.TRUTH.name, qos.data_qos())
-    recorded = shell.recorder_progress(participants)
-    shell.barrier(participants, [pub], barrier_timeout)
+    shell.barrier(participants, [pub], barrier_timeout, opened=barrier)
 
     out = InsMeasurement()
     out.header.frame_id = "base_link"
