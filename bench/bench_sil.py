@@ -1,7 +1,7 @@
 """Benchmark: ``vega sil run`` as a whole command, phase by phase, against a baseline revision.
 
 Usage: .venv/bin/vega-env python bench/bench_sil.py [--scenario NAME] [--table TABLE.npz]
-       [--repeat N] [--baseline REV]
+       [--repeat N] [--baseline REV]...
 
 Runs ``vega sil run`` (the real command line, five node processes, lockstep over Fast DDS on
 localhost) on the scenario (default ``nominal``: the whole 0–100 s flight on the nonlinear
@@ -16,12 +16,13 @@ plant) and times, from the moment the command is started, the lines it writes on
 * ``exit``: from there to the end of the process;
 * ``total``: the whole command, and the real-time factor = simulated span / total.
 
-With ``--baseline REV`` (e.g. the commit before a change) the same runs are made with the
-packages this benchmark is about (vega_bus, vega_plant, vega_bags, vega_bringup, vega_cli) of
-that revision — extracted with ``git archive`` into a temporary directory and put first on
-PYTHONPATH for the command and its nodes — alternating with the working tree's, run by run,
-so that both see the same load; the medians and the ratios baseline / current are printed
-per phase. (The other packages, the messages and numba's cache are shared.) The command runs
+With ``--baseline REV`` (e.g. the commit before a change; repeat it for a ladder of
+revisions) the same runs are made with the packages this benchmark is about (vega_bus,
+vega_plant, vega_bags, vega_bringup, vega_cli) of that revision — extracted with ``git
+archive`` into a temporary directory and put first on PYTHONPATH for the command and its
+nodes — alternating with the working tree's, run by run, so that all see the same load; the
+medians and the ratios of each revision's median to the working tree's are printed per
+phase. (The other packages, the messages and numba's cache are shared.) The command runs
 as ``python -m vega_cli.cli`` in both cases: the ``vega`` wrapper's own start (``source
 tools/env.bash``, ≈ 0.1–0.3 s) is not in these figures. The load average is printed before and
 after. Without ``--table`` the installed ``tvc_controller.npz`` (the default table) is flown.
@@ -104,7 +105,7 @@ def main():
     parser.add_argument("--scenario", default="nominal")
     parser.add_argument("--table", default=None)
     parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--baseline", default=None, metavar="REV")
+    parser.add_argument("--baseline", action="append", default=[], metavar="REV")
     args = parser.parse_args()
     sys.path.insert(0, str(ROOT / "ros2_ws/src/vega_sim"))
     from vega_sim.scenario import load_scenario
@@ -115,19 +116,17 @@ def main():
         scratch = Path(scratch)
         table = Path(args.table) if args.table else (
             ROOT / "ros2_ws/src/vega_gnc/config/tvc_controller.npz")
-        variants = [("current", [])]
-        if args.baseline:
-            variants.insert(0, (f"base {args.baseline[:7]}",
-                                _baseline_tree(args.baseline, scratch / "baseline")))
+        variants = [(rev[:9], _baseline_tree(rev, scratch / f"rev{i}"))
+                    for i, rev in enumerate(args.baseline)] + [("current", [])]
         print(f"bench_sil: scenario {args.scenario} ({span_s:g} s), table {table}, "
               f"{args.repeat} run(s) per variant; load average {os.getloadavg()[0]:.2f}")
         results = {label: [] for label, _ in variants}
         # one warm-up run per variant (numba cache, page cache), not counted
-        for label, path in variants:
-            _run(args, table, scratch / "runs", f"warm-{len(results[label])}-{label[:4]}", path)
+        for j, (_label, path) in enumerate(variants):
+            _run(args, table, scratch / "runs", f"warm-v{j}", path)
         for i in range(args.repeat):
-            for label, path in variants:
-                times, code, _ = _run(args, table, scratch / "runs", f"r{i}-{label[:4]}", path)
+            for j, (label, path) in enumerate(variants):
+                times, code, _ = _run(args, table, scratch / "runs", f"r{i}-v{j}", path)
                 results[label].append(times)
                 print(_line(f"{label[:9]}", times, span_s)
                       + f"  (exit {code}, load {os.getloadavg()[0]:.2f})", flush=True)
@@ -136,9 +135,10 @@ def main():
                    for label, runs in results.items()}
         for label, med in medians.items():
             print(_line(label[:9], med, span_s))
-        if args.baseline:
-            base, cur = medians[variants[0][0]], medians["current"]
-            print("ratio base/current: " + "  ".join(
+        cur = medians["current"]
+        for label, _ in variants[:-1]:
+            base = medians[label]
+            print(f"ratio {label}/current: " + "  ".join(
                 f"{p} {base[p] / cur[p]:.2f}" for p in PHASES if cur[p] > 0))
         print(f"load average after: {os.getloadavg()[0]:.2f}")
 

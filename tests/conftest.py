@@ -12,6 +12,7 @@ deselect them with ``-m "not ros"``.
 
 import fcntl
 import os
+import signal
 import sys
 from pathlib import Path
 
@@ -50,6 +51,12 @@ def pytest_configure(config):
             "filterwarnings", f"ignore:module '{module}' is deprecated:DeprecationWarning")
     domain_id = rosenv.configure_current_process()
     config.stash[_DOMAIN_KEY] = domain_id
+    # Tests send SIGINT to the processes they start (Ctrl-C on `vega sil run`, on the
+    # supervisor). A child inherits an *ignored* SIGINT, and a background job of a
+    # non-interactive shell (`pytest ... &` in a script) has SIGINT ignored (POSIX): those
+    # tests then hung or saw exit 0 instead of 130. The children get the default disposition.
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def pytest_report_header(config):

@@ -39,6 +39,12 @@ pytestmark = pytest.mark.ros
 SHORT_FRAMES = 401
 """Truth messages of the short scenario: frames 10.00 … 14.00 s, both ends included."""
 
+SIGNAL_FRAMES = 801
+"""Truth messages of the scenario of the mid-flight signal tests: 10.00 … 18.00 s, paced to
+real time, so that the run still flies ≥ 5 s after the signal: a test process starved by the
+load sees /clock late (one run at load 14 signalled at "12 s" of a 10–14 s flight that had
+already ended; docs/TESTING.md, "Flaky tests")."""
+
 WALL_CLOCK_CHECKS = ("compute_time",)
 """Health checks on wall-clock measurements (the controller's step time against its 12 ms
 budget): a descheduled process on a loaded, non-real-time machine can exceed it, so the tests
@@ -55,6 +61,13 @@ def pd_table(tmp_path_factory):
 def short_scenario(tmp_path_factory):
     return write_short_scenario(tmp_path_factory.mktemp("scenario"), "thesis",
                                 "thesis_short", 10.0, 14.0)
+
+
+@pytest.fixture(scope="module")
+def signal_scenario(tmp_path_factory):
+    """The thesis scenario cut to 10–18 s (:data:`SIGNAL_FRAMES`)."""
+    return write_short_scenario(tmp_path_factory.mktemp("scenario"), "thesis",
+                                "thesis_signal", 10.0, 18.0)
 
 
 def _real_nodes(layout):
@@ -143,15 +156,15 @@ def test_dry_run_lines_fly_when_pasted_in_any_order(tmp_path, short_scenario, pd
 # ----------------------------------------------------------------------------- failures
 @pytest.mark.parametrize("victim, how", [("tvc_actuator", signal.SIGKILL),
                                          (None, signal.SIGINT)])
-def test_node_death_or_interrupt_stops_everything(tmp_path, short_scenario, pd_table,
+def test_node_death_or_interrupt_stops_everything(tmp_path, signal_scenario, pd_table,
                                                   victim, how):
     """A node killed mid-flight (SIGKILL): the run stops the others, exits 1 naming the node
     and the signal, keeps a readable bag and leaves no process behind. Ctrl-C (SIGINT) on
     ``vega sil run``: the same clean stop, exit 130. The signal comes when /clock has reached
-    11 s of the 10–14 s flight (paced to real time: 3 s of flight still to go), and only if
-    every node still runs then (checked just before: a loaded test process that saw /clock
-    late fails here, by name, instead of signalling a run that has ended)."""
-    proc = start_vega_sil_run(["--scenario", short_scenario, "--table", pd_table,
+    12 s of the 10–18 s flight (paced to real time: 6 s of flight still to go), and only if
+    every node still runs then (checked just before: a test process that saw /clock too late
+    fails here, by name, instead of signalling a run that has ended)."""
+    proc = start_vega_sil_run(["--scenario", signal_scenario, "--table", pd_table,
                                "--out", tmp_path, "--realtime"])
     try:
         stderr = []
@@ -161,7 +174,7 @@ def test_node_death_or_interrupt_stops_everything(tmp_path, short_scenario, pd_t
                 break
         nodes = children_of(proc.pid)
         assert len(nodes) == len(orchestrate.PARTICIPANTS), "".join(stderr)
-        assert wait_for_sim_time(11.0, still_running=lambda: proc.poll() is None)
+        assert wait_for_sim_time(12.0, still_running=lambda: proc.poll() is None)
         assert all(alive(pid) for pid in nodes), "the flight ended before the signal was sent"
         if victim is None:
             proc.send_signal(how)
@@ -183,7 +196,7 @@ def test_node_death_or_interrupt_stops_everything(tmp_path, short_scenario, pd_t
                 f"{signal.Signals(how).name}") in err
     assert not any(alive(pid) for pid in nodes)
     bag = bagio.read_run_bag(run_layout_in(tmp_path).bag_dir)
-    assert 0 < len(bag[topics.TRUTH.name]) < SHORT_FRAMES
+    assert 0 < len(bag[topics.TRUTH.name]) < SIGNAL_FRAMES
 
 
 def _process_state(pid):
@@ -215,14 +228,14 @@ def _wait_until(condition, timeout_s):
     return condition()
 
 
-def test_stopped_recorder_still_closes_its_bag(tmp_path, short_scenario, pd_table):
+def test_stopped_recorder_still_closes_its_bag(tmp_path, signal_scenario, pd_table):
     """The recorder stopped mid-flight (SIGSTOP: a debugger, job control), then the run is
     stopped (SIGTERM to ``vega sil run``): the supervisor resumes it (SIGCONT) before its
     SIGTERM, so the recorder closes its bag instead of being killed (SIGKILL) with it open.
     No process is left; the bag has its MCAP summary and metadata.yaml and holds the flight
     up to where the recorder stopped; ``vega check`` reads it and finds the run incomplete
     (coverage), its metadata complete."""
-    proc = start_vega_sil_run(["--scenario", short_scenario, "--table", pd_table,
+    proc = start_vega_sil_run(["--scenario", signal_scenario, "--table", pd_table,
                                "--out", tmp_path, "--realtime"])
     recorder = None
     try:
@@ -235,6 +248,7 @@ def test_stopped_recorder_still_closes_its_bag(tmp_path, short_scenario, pd_tabl
         assert len(nodes) == len(orchestrate.PARTICIPANTS), "".join(stderr)
         (recorder,) = [p for p, argv in nodes.items() if argv[1].endswith("/recorder")]
         assert wait_for_sim_time(12.0, still_running=lambda: proc.poll() is None)
+        assert all(alive(pid) for pid in nodes), "the flight ended before the signal was sent"
         os.kill(recorder, signal.SIGSTOP)
         assert _wait_until(lambda: _process_state(recorder) == "T", 10.0)
         proc.send_signal(signal.SIGTERM)
@@ -258,7 +272,7 @@ def test_stopped_recorder_still_closes_its_bag(tmp_path, short_scenario, pd_tabl
         assert reader.message_count > 0
         assert reader.message_count == sum(1 for _ in reader.messages())
     truth = len(bagio.read_run_bag(layout.bag_dir)[topics.TRUTH.name])
-    assert 0 < truth < SHORT_FRAMES
+    assert 0 < truth < SIGNAL_FRAMES
     verdict = tmp_path / "verdict.json"
     check = subprocess.run([sys.executable, "-m", "vega_cli.cli", "check", layout.bag_dir,
                             "--json", verdict], capture_output=True, text=True,
@@ -267,7 +281,7 @@ def test_stopped_recorder_still_closes_its_bag(tmp_path, short_scenario, pd_tabl
     health = {h["key"]: h for h in json.loads(verdict.read_text())["health"]}
     assert health["metadata"]["passed"], health["metadata"]
     assert not health["coverage"]["passed"]
-    assert (f"{topics.TRUTH.name}: {truth} messages, a complete run has {SHORT_FRAMES}"
+    assert (f"{topics.TRUTH.name}: {truth} messages, a complete run has {SIGNAL_FRAMES}"
             in health["coverage"]["detail"]), health["coverage"]
 
 
@@ -287,6 +301,7 @@ def _signal_mid_flight(args, victim: str, at_sim_s: float, sig) -> tuple[int, st
         assert len(found) == 1, "".join(stderr)
         (pid,) = found
         assert wait_for_sim_time(at_sim_s, still_running=lambda: proc.poll() is None)
+        assert all(alive(p) for p in nodes), "the flight ended before the signal was sent"
         os.kill(pid, sig)
         stderr.append(proc.communicate(timeout=budget_s(180.0))[1])
     finally:
@@ -298,13 +313,13 @@ def _signal_mid_flight(args, victim: str, at_sim_s: float, sig) -> tuple[int, st
     return proc.returncode, "".join(stderr), nodes
 
 
-def test_killed_recorder_bag_is_repaired(tmp_path, short_scenario, pd_table):
+def test_killed_recorder_bag_is_repaired(tmp_path, signal_scenario, pd_table):
     """The recorder killed mid-flight (SIGKILL: nothing it can handle): the run fails naming
     it and says how to recover; the bag has no metadata.yaml, `vega bag repair` rebuilds it
     from the chunks flushed every second and the run metadata written at the start, and
     `vega check` reads it (incomplete run, complete metadata; the truth up to at most ≈ 1 s
     before the kill)."""
-    code, err, _ = _signal_mid_flight(["--scenario", short_scenario, "--table", pd_table,
+    code, err, _ = _signal_mid_flight(["--scenario", signal_scenario, "--table", pd_table,
                                        "--out", tmp_path, "--realtime"],
                                       "recorder", 12.5, signal.SIGKILL)
     assert code == 1, err
@@ -317,7 +332,7 @@ def test_killed_recorder_bag_is_repaired(tmp_path, short_scenario, pd_table):
     assert repair.returncode == 0, repair.stderr
     truth = bagio.read_run_bag(layout.bag_dir)[topics.TRUTH.name]
     # killed at ≥ 12.5 s of a run from 10 s: at least 1.5 s of it is on disk
-    assert truth["stamp_ns"][-1] >= 11.4e9 and len(truth) < SHORT_FRAMES
+    assert truth["stamp_ns"][-1] >= 11.4e9 and len(truth) < SIGNAL_FRAMES
     verdict = tmp_path / "verdict.json"
     check = subprocess.run([sys.executable, "-m", "vega_cli.cli", "check", layout.bag_dir,
                             "--json", verdict], capture_output=True, text=True,
@@ -327,11 +342,11 @@ def test_killed_recorder_bag_is_repaired(tmp_path, short_scenario, pd_table):
     assert health["metadata"]["passed"] and not health["coverage"]["passed"]
 
 
-def test_a_recorder_that_ends_mid_flight_is_blamed(tmp_path, short_scenario, pd_table):
+def test_a_recorder_that_ends_mid_flight_is_blamed(tmp_path, signal_scenario, pd_table):
     """The recorder stopped by SIGTERM mid-flight closes its bag and exits 0 — too early: the
     run fails naming the recorder as having ended before the run was complete (before: the run
     flew on without it and only the report failed)."""
-    code, err, _ = _signal_mid_flight(["--scenario", short_scenario, "--table", pd_table,
+    code, err, _ = _signal_mid_flight(["--scenario", signal_scenario, "--table", pd_table,
                                        "--out", tmp_path, "--realtime"],
                                       "recorder", 11.0, signal.SIGTERM)
     assert code == 1, err
@@ -341,10 +356,10 @@ def test_a_recorder_that_ends_mid_flight_is_blamed(tmp_path, short_scenario, pd_
 
 
 @pytest.mark.parametrize("victim", ["tvc_controller", "recorder"])
-def test_a_stopped_node_is_the_one_blamed(tmp_path, short_scenario, pd_table, victim):
+def test_a_stopped_node_is_the_one_blamed(tmp_path, signal_scenario, pd_table, victim):
     """A node stopped mid-flight (SIGSTOP): the others stall waiting for it; the run fails
     naming the stopped node first (not the first node, in start order, whose wait timed out)."""
-    code, err, nodes = _signal_mid_flight(["--scenario", short_scenario, "--table", pd_table,
+    code, err, nodes = _signal_mid_flight(["--scenario", signal_scenario, "--table", pd_table,
                                            "--out", tmp_path, "--realtime"],
                                           victim, 11.0, signal.SIGSTOP)
     assert code == 1, err
