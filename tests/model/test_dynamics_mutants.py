@@ -196,3 +196,72 @@ def test_rk4_step_of_a_free_bending_mode_is_the_damped_oscillator(pad):
     exact = 0.01 * math.exp(-z * w * t) * (math.cos(wd * t) + z * w / wd * math.sin(wd * t))
     assert x[4] == pytest.approx(exact, rel=1e-9)
     assert x[5] == 0.0 and x[0] == 0.0 and x[3] == 0.0
+
+
+def test_model_keeps_its_parameters(maxq):
+    assert NonlinearModel(maxq).p is maxq
+
+
+def _z_ddot_hand(p, cn_alpha_of, x, beta=0.0):
+    """z̈ and θ̈ from the force/moment equations with the given C_Nα(M) and the numpy table
+    C_A(M) (Aerodynamics.c_a: numpy.interp), β = 0, no bending, no nozzle motion."""
+    th, thd, zd = x[0], x[1], x[3]
+    d = p.l_cp_m
+    vx = p.v_mps - thd * d * math.sin(th)
+    vz = zd - thd * d * math.cos(th)
+    alpha = math.atan2(vx * math.sin(th) + vz * math.cos(th),
+                       vx * math.cos(th) - vz * math.sin(th))
+    airspeed = math.hypot(vx, vz)
+    mach = airspeed / p.sound_speed_mps
+    qbar_s = 0.5 * p.rho_kgpm3 * airspeed ** 2 * p.s_ref_m2
+    s = math.sin(alpha)
+    normal = qbar_s * (cn_alpha_of(mach) * s * math.cos(alpha) + K_CF * s * abs(s))
+    axial = qbar_s * float(p.aero.c_a(mach))
+    fx = p.thrust_n - axial
+    fz = -normal
+    return ((-fx * math.sin(th) + fz * math.cos(th)) / p.mass_kg,
+            d * normal / p.jyy_kgm2, mach)
+
+
+def test_one_model_follows_the_mach_number_across_table_segments():
+    """One model (its cached table segments) evaluated at states whose airspeed moves the
+    Mach number up through several C_A breakpoints, beyond the C_Nα table (M > 8) and back:
+    every evaluation equals the hand equations with numpy's tables."""
+    p = model_parameters(20.0)
+    model = NonlinearModel(p)
+    machs = []
+    for zd in (0.0, 150.0, 400.0, 900.0, 2800.0, 3000.0, 600.0, 0.0, -300.0):
+        x = _x(theta=0.2, z_dot=zd)
+        got = model.derivatives(x, (0.0, 0.0, 0.0))
+        zdd, tdd, mach = _z_ddot_hand(p, lambda m: CN_ALPHA, x)
+        machs.append(mach)
+        assert got[3] == pytest.approx(zdd, rel=1e-9, abs=1e-9)
+        assert got[1] == pytest.approx(tdd, rel=1e-9, abs=1e-9)
+    assert min(machs) < 1.0 and max(machs) > 8.0
+
+
+def test_sloped_normal_force_table_is_interpolated(maxq):
+    """With a C_Nα table that varies with Mach (1.5 → 2.5 /rad from M 0 to 4; the shipped
+    one is flat), the model reads C_Nα at the actual Mach of the airflow."""
+    import dataclasses
+
+    from vega_model.aero import Aerodynamics
+    from vega_model.vehicle_data import load_vehicle_data
+
+    vd = load_vehicle_data()
+    table = {k: vd[k] for k in (
+        "geometry.s_ref_m2", "aerodynamics.axial.mach", "aerodynamics.axial.c_a",
+        "aerodynamics.normal.x_cp_m", "aerodynamics.crossflow.eta",
+        "aerodynamics.crossflow.c_dc", "aerodynamics.crossflow.planform_area_m2")}
+    table["aerodynamics.normal.mach"] = np.array([0.0, 4.0])
+    table["aerodynamics.normal.cn_alpha_per_rad"] = np.array([1.5, 2.5])
+    table["aerodynamics.normal.x_cp_m"] = np.array([18.36, 18.36])
+    p = dataclasses.replace(maxq, aero=Aerodynamics(table))
+    model = NonlinearModel(p)
+    for zd in (30.0, 120.0, -60.0):
+        x = _x(theta=0.05, z_dot=zd)
+        got = model.derivatives(x, (0.0, 0.0, 0.0))
+        zdd, tdd, mach = _z_ddot_hand(p, lambda m: 1.5 + 0.25 * m, x)
+        assert 1.0 < mach < 4.0
+        assert got[3] == pytest.approx(zdd, rel=1e-9)
+        assert got[1] == pytest.approx(tdd, rel=1e-9)
