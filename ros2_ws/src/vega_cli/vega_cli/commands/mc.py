@@ -20,7 +20,7 @@ import argparse
 import json
 import time
 
-from vega_core.errors import BadArgument
+from vega_core.errors import BadArgument, BadInput
 
 __all__ = ["register"]
 
@@ -53,6 +53,50 @@ def _positive_int(highest: int):
     return parse
 
 
+_CAMPAIGN_FIELDS = {"scenario_yaml": str, "dispersions_yaml": str, "dispersions_path": str,
+                    "seed": int, "runs": int, "table": str, "table_sha256": str}
+"""The campaign.json fields ``--resume`` reads (offline_synthesis.campaign_run._inputs) and
+their JSON types; ``kind`` (a string) and ``times_s`` (null or a list of numbers) may be
+absent."""
+
+
+def _resumed_inputs(path) -> dict:
+    """A campaign directory's campaign.json, checked before anything starts: at most 1 MiB of
+    UTF-8 JSON, an object with every field of :data:`_CAMPAIGN_FIELDS` of its type, ``runs``
+    in 1..``MAX_RUNS`` and ``seed`` in the int64 range; one line (BadFile, exit 2) otherwise —
+    a damaged or edited file is bad input, not a defect."""
+    from vega_bringup.planning import _checked_seed
+    from vega_core.documents import read_text
+    from vega_core.errors import BadFile
+
+    text = read_text(path, "campaign inputs")
+    try:
+        inputs = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise BadFile(f"{path}: not a campaign.json ({exc})") from None
+    if not isinstance(inputs, dict):
+        raise BadFile(f"{path}: not a campaign.json (a JSON object expected)")
+    for key, kind in _CAMPAIGN_FIELDS.items():
+        value = inputs.get(key)
+        if not isinstance(value, kind) or isinstance(value, bool):
+            raise BadFile(f"{path}: field '{key}': must be a JSON "
+                          f"{'string' if kind is str else 'integer'}, got {value!r:.60}")
+    if not isinstance(inputs.get("kind", "flights"), str):
+        raise BadFile(f"{path}: field 'kind': must be a JSON string")
+    times = inputs.get("times_s")
+    if times is not None and not (isinstance(times, list) and all(
+            isinstance(t, (int, float)) and not isinstance(t, bool) for t in times)):
+        raise BadFile(f"{path}: field 'times_s': must be null or a list of numbers")
+    if not 1 <= inputs["runs"] <= MAX_RUNS:
+        raise BadFile(f"{path}: field 'runs': must be within 1..{MAX_RUNS}, got "
+                      f"{inputs['runs']}")
+    try:
+        _checked_seed(inputs["seed"])
+    except BadInput as exc:
+        raise BadFile(f"{path}: field 'seed': {exc}") from None
+    return inputs
+
+
 def _campaign(args: argparse.Namespace, kind: str) -> dict:
     """The inputs of a ``kind`` campaign ("flights" or "margins"): from ``--resume DIR``'s
     campaign.json (a campaign of the other kind refused), else from the arguments. Every input
@@ -71,7 +115,7 @@ def _campaign(args: argparse.Namespace, kind: str) -> dict:
         path = out / "campaign.json"
         if not path.is_file():
             raise BadArgument(f"--resume {out}: no campaign.json (not a campaign directory)")
-        inputs = json.loads(path.read_text())
+        inputs = _resumed_inputs(path)
         if inputs.get("kind", "flights") != kind:
             other = "run" if kind == "margins" else "margins"
             raise BadArgument(f"--resume {out}: a {inputs.get('kind', 'flights')} campaign "
