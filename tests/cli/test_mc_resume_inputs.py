@@ -74,3 +74,26 @@ def test_an_oversized_campaign_json_is_refused(inputs, tmp_path, capsys):
     out = _campaign_dir(tmp_path, " " * (1 << 20) + json.dumps(inputs))
     assert cli.main(["mc", "run", "--resume", str(out)]) == 2
     assert "over the 1 MiB" in capsys.readouterr().err
+
+
+def test_rerun_of_a_damaged_campaign_json_is_one_line_exit_2(inputs, tmp_path, capsys):
+    out = _campaign_dir(tmp_path, "{not json")
+    assert cli.main(["mc", "rerun", str(out), "--sample", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"vega: error: {out / 'campaign.json'}: not a campaign.json (")
+    assert err.count("\n") == 1, err
+
+
+@pytest.mark.parametrize("row, message", [("{oops", "not a campaign sample row (Expecting"),
+                                          ("7", "not a campaign sample row (a JSON object")])
+def test_rerun_of_a_damaged_sample_row_is_one_line_exit_2(inputs, tmp_path, capsys, row,
+                                                          message):
+    """A damaged samples/000001.json: refused before anything is flown or written."""
+    out = _campaign_dir(tmp_path, inputs)
+    (out / "samples").mkdir()
+    (out / "samples" / "000001.json").write_text(row)
+    assert cli.main(["mc", "rerun", str(out), "--sample", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"vega: error: {out / 'samples' / '000001.json'}: {message}"), err
+    assert err.count("\n") == 1, err
+    assert not (out / "reruns").exists()

@@ -60,22 +60,30 @@ their JSON types; ``kind`` (a string) and ``times_s`` (null or a list of numbers
 absent."""
 
 
+def _json_object(path, what: str) -> dict:
+    """The JSON object in ``path`` (at most 1 MiB of UTF-8); one line (BadFile) otherwise."""
+    from vega_core.documents import read_text
+    from vega_core.errors import BadFile
+
+    text = read_text(path, what)
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise BadFile(f"{path}: not a {what} ({exc})") from None
+    if not isinstance(value, dict):
+        raise BadFile(f"{path}: not a {what} (a JSON object expected)")
+    return value
+
+
 def _resumed_inputs(path) -> dict:
     """A campaign directory's campaign.json, checked before anything starts: at most 1 MiB of
     UTF-8 JSON, an object with every field of :data:`_CAMPAIGN_FIELDS` of its type, ``runs``
     in 1..``MAX_RUNS`` and ``seed`` in the int64 range; one line (BadFile, exit 2) otherwise —
     a damaged or edited file is bad input, not a defect."""
     from vega_bringup.planning import _checked_seed
-    from vega_core.documents import read_text
     from vega_core.errors import BadFile
 
-    text = read_text(path, "campaign inputs")
-    try:
-        inputs = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise BadFile(f"{path}: not a campaign.json ({exc})") from None
-    if not isinstance(inputs, dict):
-        raise BadFile(f"{path}: not a campaign.json (a JSON object expected)")
+    inputs = _json_object(path, "campaign.json")
     for key, kind in _CAMPAIGN_FIELDS.items():
         value = inputs.get(key)
         if not isinstance(value, kind) or isinstance(value, bool):
@@ -202,14 +210,14 @@ def _rerun(args: argparse.Namespace) -> int:
     path = camp / "campaign.json"
     if not path.is_file():
         raise BadArgument(f"{camp}: no campaign.json (not a campaign directory)")
-    inputs = json.loads(path.read_text())
+    inputs = _resumed_inputs(path)
     if not 0 <= args.sample < inputs["runs"]:
         raise BadArgument(f"--sample {args.sample}: the campaign has samples "
                           f"0-{inputs['runs'] - 1}")
     row_path = camp / "samples" / f"{args.sample:06d}.json"
     if not row_path.is_file():
         raise BadArgument(f"--sample {args.sample}: not flown yet in {camp} (--resume it first)")
-    row = json.loads(row_path.read_text())
+    row = _json_object(row_path, "campaign sample row")
     base = parse_scenario(inputs["scenario_yaml"], f"{path}: scenario_yaml")
     disp = parse_dispersions(inputs["dispersions_yaml"], inputs["dispersions_path"])
     scenario, _ = sample_scenario(base, disp, inputs["seed"], args.sample)
