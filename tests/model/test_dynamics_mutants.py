@@ -49,10 +49,10 @@ def test_thrust_alone_on_the_pad(pad):
     T, m, J, lc = p.thrust_n, p.mass_kg, p.jyy_kgm2, p.l_cg_pvp_m
     theta, beta = 0.3, 0.1
     xd = nonlinear_derivatives(p, _x(theta=theta, theta_dot=0.0, z_dot=0.0), [beta, 0.0, 0.0])
-    assert xd[1] == pytest.approx(-lc * T * math.sin(beta) / J, rel=1e-12)
-    assert xd[3] == pytest.approx(-T * math.sin(theta + beta) / m, rel=1e-12)
+    assert xd[1] == pytest.approx(-lc * T * math.sin(beta) / J, rel=1e-12, abs=0)
+    assert xd[3] == pytest.approx(-T * math.sin(theta + beta) / m, rel=1e-12, abs=0)
     for i in (0, 1):
-        assert xd[6 + i] == pytest.approx(-T * p.psi_t_pvp[i] * math.sin(beta), rel=1e-12)
+        assert xd[6 + i] == pytest.approx(-T * p.psi_t_pvp[i] * math.sin(beta), rel=1e-12, abs=0)
     assert xd[0] == 0.0 and xd[2] == 0.0 and xd[4] == 0.0 and xd[5] == 0.0
 
 
@@ -65,11 +65,11 @@ def test_bent_vehicle_on_the_pad(pad):
     off = p.psi_t_pvp[0] * q1 + p.psi_t_pvp[1] * q2
     xd = nonlinear_derivatives(p, _x(q1=q1, q2=q2, q1_dot=q1d, q2_dot=q2d), [0.0, 0.0, 0.0])
     assert xd[1] == pytest.approx((T * math.cos(be) * off - lc * T * math.sin(be)) / J,
-                                  rel=1e-12)
-    assert xd[3] == pytest.approx(-T * math.sin(be) / m, rel=1e-12)
+                                  rel=1e-12, abs=0)
+    assert xd[3] == pytest.approx(-T * math.sin(be) / m, rel=1e-12, abs=0)
     w1, w2 = p.omega_radps
-    assert xd[6] == pytest.approx(-w1 * w1 * q1 - 2.0 * p.zeta * w1 * q1d, rel=1e-12)
-    assert xd[7] == pytest.approx(-w2 * w2 * q2 - 2.0 * p.zeta * w2 * q2d, rel=1e-12)
+    assert xd[6] == pytest.approx(-w1 * w1 * q1 - 2.0 * p.zeta * w1 * q1d, rel=1e-12, abs=0)
+    assert xd[7] == pytest.approx(-w2 * w2 * q2 - 2.0 * p.zeta * w2 * q2d, rel=1e-12, abs=0)
     assert xd[4] == q1d and xd[5] == q2d
 
 
@@ -87,19 +87,19 @@ def test_nozzle_reaction_on_the_pad(pad):
     fz = -T * math.sin(beta) + fnz
     xd = nonlinear_derivatives(p, _x(theta=theta), [beta, bdd, 0.0, bd])
     assert xd[1] == pytest.approx((-lc * T * math.sin(beta) - jn * bdd + lc * fnz) / J,
-                                  rel=1e-12)
+                                  rel=1e-12, abs=0)
     assert xd[3] == pytest.approx((-fx * math.sin(theta) + fz * math.cos(theta)) / m,
-                                  rel=1e-12)
+                                  rel=1e-12, abs=0)
     for i in (0, 1):
         want = p.psi_t_pvp[i] * (-T * math.sin(beta) + fnz) + jn * p.psi_r_pvp[i] * bdd
-        assert xd[6 + i] == pytest.approx(want, rel=1e-12)
+        assert xd[6 + i] == pytest.approx(want, rel=1e-12, abs=0)
     # three inputs: β̇ = 0
     xd3 = nonlinear_derivatives(p, _x(theta=theta), [beta, bdd, 0.0])
     fnx0 = -mn * ln * bdd * math.sin(beta)
     fnz0 = -mn * ln * bdd * math.cos(beta)
     assert xd3[3] == pytest.approx(((-(T * math.cos(beta) + fnx0)) * math.sin(theta)
                                     + (-T * math.sin(beta) + fnz0) * math.cos(theta)) / m,
-                                   rel=1e-12)
+                                   rel=1e-12, abs=0)
 
 
 def _normal(p, airspeed, alpha):
@@ -116,17 +116,17 @@ def test_angle_of_attack_from_drift_rate_at_max_q(maxq, alpha_deg):
     zd = p.v_mps * math.tan(a)
     x = _x(z_dot=zd)
     airspeed = p.v_mps / math.cos(a)
-    assert angle_of_attack(p, x, 0.0) == pytest.approx(a, rel=1e-12)
+    assert angle_of_attack(p, x, 0.0) == pytest.approx(a, rel=1e-12, abs=0)
     alpha, qa = alpha_and_q_alpha(p, x, 0.0)
-    assert alpha == pytest.approx(a, rel=1e-12)
-    assert qa == pytest.approx(0.5 * p.rho_kgpm3 * airspeed ** 2 * a, rel=1e-12)
-    assert nonlinear_outputs(p, x, [0.0, 0.0, 0.0])[0] == pytest.approx(qa, rel=1e-12)
+    assert alpha == pytest.approx(a, rel=1e-12, abs=0)
+    assert qa == pytest.approx(0.5 * p.rho_kgpm3 * airspeed ** 2 * a, rel=1e-12, abs=0)
+    assert nonlinear_outputs(p, x, [0.0, 0.0, 0.0])[0] == pytest.approx(qa, rel=1e-12, abs=0)
     n = _normal(p, airspeed, a)
     xd = nonlinear_derivatives(p, x, [0.0, 0.0, 0.0])
-    assert xd[1] == pytest.approx(p.l_cp_m * n / p.jyy_kgm2, rel=1e-9)
-    assert xd[3] == pytest.approx(-n / p.mass_kg, rel=1e-9)
+    assert xd[1] == pytest.approx(p.l_cp_m * n / p.jyy_kgm2, rel=1e-9, abs=0)
+    assert xd[3] == pytest.approx(-n / p.mass_kg, rel=1e-9, abs=0)
     # the same air motion as a wind: v_w = −ż
-    assert angle_of_attack(p, _x(), -zd) == pytest.approx(a, rel=1e-12)
+    assert angle_of_attack(p, _x(), -zd) == pytest.approx(a, rel=1e-12, abs=0)
     np.testing.assert_allclose(nonlinear_derivatives(p, _x(), [0.0, 0.0, -zd])[[1, 3]],
                                xd[[1, 3]], rtol=1e-12)
 
@@ -137,14 +137,14 @@ def test_angle_of_attack_from_attitude_at_max_q(maxq):
     p = maxq
     th = math.radians(8.0)
     x = _x(theta=th)
-    assert angle_of_attack(p, x, 0.0) == pytest.approx(th, rel=1e-12)
+    assert angle_of_attack(p, x, 0.0) == pytest.approx(th, rel=1e-12, abs=0)
     n = _normal(p, p.v_mps, th)
     axial = 0.5 * p.rho_kgpm3 * p.v_mps ** 2 * p.s_ref_m2 * float(p.aero.c_a(p.mach))
     xd = nonlinear_derivatives(p, x, [0.0, 0.0, 0.0])
     T, m = p.thrust_n, p.mass_kg
     assert xd[3] == pytest.approx((-(T - axial) * math.sin(th) - n * math.cos(th)) / m,
-                                  rel=1e-9)
-    assert xd[1] == pytest.approx(p.l_cp_m * n / p.jyy_kgm2, rel=1e-9)
+                                  rel=1e-9, abs=0)
+    assert xd[1] == pytest.approx(p.l_cp_m * n / p.jyy_kgm2, rel=1e-9, abs=0)
 
 
 def test_pitch_rate_moves_the_air_at_the_cp(maxq):
@@ -156,10 +156,10 @@ def test_pitch_rate_moves_the_air_at_the_cp(maxq):
     a = math.atan2(-0.05 * d, p.v_mps)
     airspeed = math.hypot(p.v_mps, 0.05 * d)
     alpha, qa = alpha_and_q_alpha(p, x, 0.0)
-    assert alpha == pytest.approx(a, rel=1e-12)
-    assert qa == pytest.approx(0.5 * p.rho_kgpm3 * airspeed ** 2 * a, rel=1e-12)
+    assert alpha == pytest.approx(a, rel=1e-12, abs=0)
+    assert qa == pytest.approx(0.5 * p.rho_kgpm3 * airspeed ** 2 * a, rel=1e-12, abs=0)
     xd = nonlinear_derivatives(p, x, [0.0, 0.0, 0.0])
-    assert xd[3] == pytest.approx(-_normal(p, airspeed, a) / p.mass_kg, rel=1e-9)
+    assert xd[3] == pytest.approx(-_normal(p, airspeed, a) / p.mass_kg, rel=1e-9, abs=0)
     assert xd[0] == 0.05
 
 
@@ -194,7 +194,7 @@ def test_rk4_step_of_a_free_bending_mode_is_the_damped_oscillator(pad):
     t = 0.1
     wd = w * math.sqrt(1.0 - z * z)
     exact = 0.01 * math.exp(-z * w * t) * (math.cos(wd * t) + z * w / wd * math.sin(wd * t))
-    assert x[4] == pytest.approx(exact, rel=1e-9)
+    assert x[4] == pytest.approx(exact, rel=1e-9, abs=0)
     assert x[5] == 0.0 and x[0] == 0.0 and x[3] == 0.0
 
 
@@ -241,7 +241,7 @@ def test_one_model_follows_the_mach_number_across_table_segments():
 
 
 def test_sloped_normal_force_table_is_interpolated(maxq):
-    """With a C_Nα table that varies with Mach (1.5 → 2.5 /rad from M 0 to 4; the shipped
+    """With a C_Nα table that varies with Mach (1.5 → 2.25 /rad from M 1 to 4; the shipped
     one is flat), the model reads C_Nα at the actual Mach of the airflow."""
     import dataclasses
 
@@ -253,15 +253,34 @@ def test_sloped_normal_force_table_is_interpolated(maxq):
         "geometry.s_ref_m2", "aerodynamics.axial.mach", "aerodynamics.axial.c_a",
         "aerodynamics.normal.x_cp_m", "aerodynamics.crossflow.eta",
         "aerodynamics.crossflow.c_dc", "aerodynamics.crossflow.planform_area_m2")}
-    table["aerodynamics.normal.mach"] = np.array([0.0, 4.0])
-    table["aerodynamics.normal.cn_alpha_per_rad"] = np.array([1.5, 2.5])
+    table["aerodynamics.normal.mach"] = np.array([1.0, 4.0])
+    table["aerodynamics.normal.cn_alpha_per_rad"] = np.array([1.5, 2.25])
     table["aerodynamics.normal.x_cp_m"] = np.array([18.36, 18.36])
     p = dataclasses.replace(maxq, aero=Aerodynamics(table))
     model = NonlinearModel(p)
     for zd in (30.0, 120.0, -60.0):
         x = _x(theta=0.05, z_dot=zd)
         got = model.derivatives(x, (0.0, 0.0, 0.0))
-        zdd, tdd, mach = _z_ddot_hand(p, lambda m: 1.5 + 0.25 * m, x)
+        zdd, tdd, mach = _z_ddot_hand(p, lambda m: 1.5 + 0.25 * (m - 1.0), x)
         assert 1.0 < mach < 4.0
-        assert got[3] == pytest.approx(zdd, rel=1e-9)
-        assert got[1] == pytest.approx(tdd, rel=1e-9)
+        assert got[3] == pytest.approx(zdd, rel=1e-9, abs=0)
+        assert got[1] == pytest.approx(tdd, rel=1e-9, abs=0)
+
+
+def test_attitude_pitch_rate_and_drift_rate_together(maxq):
+    """θ = 0.3, θ̇ = 0.2 rad/s, ż = 40 m/s (z = 7 m, which must not enter): the CP's air
+    velocity (V − θ̇ d sin θ, ż − θ̇ d cos θ) resolved in body axes gives α."""
+    p = maxq
+    th, thd, zd = 0.3, 0.2, 40.0
+    d = p.l_cp_m
+    vx = p.v_mps - thd * d * math.sin(th)
+    vz = zd - thd * d * math.cos(th)
+    a = math.atan2(vx * math.sin(th) + vz * math.cos(th), vx * math.cos(th) - vz * math.sin(th))
+    x = _x(theta=th, theta_dot=thd, z=7.0, z_dot=zd)
+    assert angle_of_attack(p, x, 0.0) == pytest.approx(a, rel=1e-12, abs=0)
+    alpha, qa = alpha_and_q_alpha(p, x, 0.0)
+    assert qa == pytest.approx(0.5 * p.rho_kgpm3 * (vx * vx + vz * vz) * a, rel=1e-12, abs=0)
+    got = NonlinearModel(p).derivatives(x, (0.0, 0.0, 0.0))
+    zdd, tdd, _ = _z_ddot_hand(p, lambda m: CN_ALPHA, x)
+    assert got[3] == pytest.approx(zdd, rel=1e-9, abs=0)
+    assert got[1] == pytest.approx(tdd, rel=1e-9, abs=0)
