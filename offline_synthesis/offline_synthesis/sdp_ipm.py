@@ -159,7 +159,7 @@ def _max_step(lam, dM):
 
 def solve_conic(A, b, c, psd_dims=(), n_nonneg=0, n_zero=0, max_iter=100, tol_feas=1e-7,
                 tol_gap_abs=1e-7, tol_gap_rel=1e-4, reduced_tol=1e-3, step_fraction=0.99,
-                refine_steps=3, stall_window=6, verbose=False):
+                refine_steps=3, stall_window=6, verbose=False, centring_floor=0.0):
     """Solve min cᵀx s.t. Ax + s = b, s ∈ R₊^{n_nonneg} × PSD cones (in that row order).
 
     Returns an :class:`IpmSolution`; status "Solved" when the feasibility and gap tolerances
@@ -177,11 +177,12 @@ def solve_conic(A, b, c, psd_dims=(), n_nonneg=0, n_zero=0, max_iter=100, tol_fe
     with single_threaded_blas():
         return _solve_conic(A, b, c, psd_dims, n_nonneg, n_zero, max_iter, tol_feas, tol_gap_abs,
                             tol_gap_rel, reduced_tol, step_fraction, refine_steps, stall_window,
-                            verbose)
+                            verbose, centring_floor)
 
 
 def _solve_conic(A, b, c, psd_dims, n_nonneg, n_zero, max_iter, tol_feas, tol_gap_abs,
-                 tol_gap_rel, reduced_tol, step_fraction, refine_steps, stall_window, verbose):
+                 tol_gap_rel, reduced_tol, step_fraction, refine_steps, stall_window, verbose,
+                 centring_floor=0.0):
     start_time = time.perf_counter()
     if n_zero:
         raise ValueError("sdp_ipm: zero cones are not supported")
@@ -213,7 +214,7 @@ def _solve_conic(A, b, c, psd_dims, n_nonneg, n_zero, max_iter, tol_feas, tol_ga
     def vec_all(mats):
         return np.concatenate([k.vec(M) for k, M in zip(cones, mats)])
 
-    status, it = MAX_ITERATIONS, 0
+    status, it, last_step = MAX_ITERATIONS, 0, 1.0
     best = None
     history = []
     pres = dres = gap = np.inf
@@ -308,6 +309,8 @@ def _solve_conic(A, b, c, psd_dims, n_nonneg, n_zero, max_iter, tol_feas, tol_ga
             mu_aff = sum(float(np.sum((Sk + a_p * dSk) * (Zk + a_d * dZk)))
                          for Sk, Zk, dSk, dZk in zip(S, Z, dS_a, dZ_a)) / nu
             sigma = float(np.clip((mu_aff / mu) ** 3, 0.0, 1.0))
+            if last_step < 0.2:            # short steps: more centring (``centring_floor``)
+                sigma = max(sigma, centring_floor)
             # corrector (centring + second-order term)
             D = []
             for (_, _, lam, *_), (dSh, dZh) in zip(scal, hats):
@@ -317,6 +320,7 @@ def _solve_conic(A, b, c, psd_dims, n_nonneg, n_zero, max_iter, tol_feas, tol_ga
             a_p, a_d, _ = steps(dS, dZ)
             a_p = min(1.0, step_fraction * a_p)
             a_d = min(1.0, step_fraction * a_d)
+            last_step = min(a_p, a_d)
             if not (a_p > 1e-10 or a_d > 1e-10):
                 if verbose:
                     print("step lengths", a_p, a_d)
@@ -354,7 +358,7 @@ def _nt_scaling(cones, S, Z, nv):
     """
     scal = []
     M = np.zeros((nv, nv))
-    groups = {}
+    groups = {}                   # dense cones by column set: (block, [Ã_k]) → M[block] += ÃÃᵀ
     for k, Sk, Zk in zip(cones, S, Z):
         Ls = np.linalg.cholesky(Sk)
         Lz = np.linalg.cholesky(Zk)
@@ -371,7 +375,9 @@ def _nt_scaling(cones, S, Z, nv):
         scal.append((R, Rinv, lam, H, Q))
     for block, parts in groups.values():
         At = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
-        M[block] += At @ At.T
+        # ÃÃᵀ by a symmetric rank-k update (half the flops of a product); Ãᵀ is Fortran-ordered
+        upper = sla.blas.dsyrk(1.0, At.T, trans=1)
+        M[block] += upper + np.triu(upper, 1).T
     return scal, 0.5 * (M + M.T)
 
 
@@ -418,7 +424,8 @@ def _least_squares_start(A, AT, b, c, cones):
 
 def solve_conic_hsde(A, b, c, psd_dims=(), n_nonneg=0, n_zero=0, max_iter=100, tol_feas=1e-7,
                      tol_gap_abs=1e-7, tol_gap_rel=1e-4, tol_infeas=1e-8, reduced_tol=1e-3,
-                     step_fraction=0.99, refine_steps=3, stall_window=6, verbose=False):
+                     step_fraction=0.99, refine_steps=3, stall_window=6, verbose=False,
+                     tol_dual=None):
     """:func:`solve_conic` on the homogeneous self-dual embedding (no feasible start needed).
 
     The embedding (Ye, Todd & Mizuno 1994; the form of CVXOPT's conelp and Clarabel):
@@ -435,17 +442,20 @@ def solve_conic_hsde(A, b, c, psd_dims=(), n_nonneg=0, n_zero=0, max_iter=100, t
     (the stage-1 answer violates its robustness-margin LMIs).
 
     Statuses as :func:`solve_conic`, plus "PrimalInfeasible" / "DualInfeasible" (cvxpy maps
-    them to infeasible / unbounded).
+    them to infeasible / unbounded). ``tol_dual`` (default ``tol_feas``) is the tolerance of
+    the relative dual residual: a caller who needs a primal feasible point near the optimum
+    (not the dual certificate of its optimality) may relax it.
     """
     with single_threaded_blas():
         return _solve_hsde(A, b, c, psd_dims, n_nonneg, n_zero, max_iter, tol_feas,
                            tol_gap_abs, tol_gap_rel, tol_infeas, reduced_tol, step_fraction,
-                           refine_steps, stall_window, verbose)
+                           refine_steps, stall_window, verbose,
+                           tol_feas if tol_dual is None else tol_dual)
 
 
 def _solve_hsde(A, b, c, psd_dims, n_nonneg, n_zero, max_iter, tol_feas, tol_gap_abs,
                 tol_gap_rel, tol_infeas, reduced_tol, step_fraction, refine_steps,
-                stall_window, verbose):
+                stall_window, verbose, tol_dual):
     start_time = time.perf_counter()
     if n_zero:
         raise ValueError("sdp_ipm: zero cones are not supported")
@@ -491,7 +501,7 @@ def _solve_hsde(A, b, c, psd_dims, n_nonneg, n_zero, max_iter, tol_feas, tol_gap
         score = max(pres, dres, min(gap, rel_gap))
         if best is None or score < best[0]:
             best = (score, x / tau, s / tau, z / tau, pres, dres, gap, rel_gap)
-        if pres < tol_feas and dres < tol_feas and (gap < tol_gap_abs or rel_gap < tol_gap_rel):
+        if pres < tol_feas and dres < tol_dual and (gap < tol_gap_abs or rel_gap < tol_gap_rel):
             status = SOLVED
             break
         # infeasibility certificates (normalised by the size of the ray)

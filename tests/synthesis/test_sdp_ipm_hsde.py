@@ -8,7 +8,9 @@ import pytest
 
 from offline_synthesis.gridded_plant import GriddedPlant
 from offline_synthesis.lpv_synthesis import IPM, synthesize
+from offline_synthesis.pipeline import SOLVER_PATHS, run_synthesis
 from offline_synthesis.sdp_ipm import solve_conic_hsde
+from vega_core.errors import BadArgument
 
 from test_lmi_lpv import RATES, RHO, plant_at
 
@@ -31,7 +33,7 @@ def test_largest_eigenvalue():
     C = B + B.T
     t = cp.Variable()
     problem = cp.Problem(cp.Minimize(t), [t * np.eye(6) - C >> 0])
-    answer = _solve(problem, tol_gap_rel=1e-9, tol_gap_abs=1e-10, tol_feas=1e-10)
+    answer = _solve(problem, tol_gap_rel=1e-8, tol_gap_abs=1e-9, tol_feas=1e-9)
     assert answer.status == "Solved"
     assert t.value == pytest.approx(np.linalg.eigvalsh(C)[-1], abs=1e-7)
 
@@ -57,7 +59,7 @@ def test_linear_program_with_a_known_vertex():
     x = cp.Variable(2)
     problem = cp.Problem(cp.Minimize(-x[0] - 2 * x[1]),
                          [x[0] + x[1] <= 4, x[0] + 3 * x[1] <= 6, x >= 0])
-    answer = _solve(problem, tol_gap_rel=1e-10, tol_gap_abs=1e-10, tol_feas=1e-10)
+    answer = _solve(problem, tol_gap_rel=1e-8, tol_gap_abs=1e-9, tol_feas=1e-9)
     assert answer.status == "Solved"
     assert problem.value == pytest.approx(-5.0, abs=1e-7)
     assert x.value == pytest.approx([3.0, 1.0], abs=1e-6)
@@ -118,3 +120,20 @@ def test_synthesis_stage2_on_the_embedding():
     assert new.gamma_min == pytest.approx(old.gamma_min, rel=5e-3)
     assert new.gamma == pytest.approx(1.2 * new.gamma_min)
     assert new.certificate_max_eig < 0.0 and old.certificate_max_eig < 0.0
+
+
+def test_stage1_on_clarabel_stage2_on_the_ipm():
+    """The "hybrid" path of `vega synth` (pipeline.SOLVER_PATHS): stage 1 by Clarabel on the
+    Schur-reduced LMIs, stage 2 by the IPM; same γ_min as Clarabel alone on the same form."""
+    plant = GriddedPlant.from_points(RHO, [plant_at(r) for r in RHO])
+    hybrid = synthesize(plant, rate_bounds=RATES, **SOLVER_PATHS["hybrid"])
+    assert hybrid.solvers == {"stage1": "CLARABEL", "stage2": IPM}
+    alone = synthesize(plant, rate_bounds=RATES, backoff=1.0, solver="CLARABEL", fallback=None,
+                       stage1_form="reduced")
+    assert hybrid.gamma_min == alone.gamma_min
+    assert hybrid.certificate_max_eig < 0.0
+
+
+def test_unknown_solver_path_is_refused_before_anything_runs():
+    with pytest.raises(BadArgument, match="solver path 'fast'"):
+        run_synthesis(solver_path="fast", progress=lambda line: None)
