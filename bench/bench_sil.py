@@ -85,7 +85,10 @@ def _run(args, table, out, run_id, pythonpath):
     reader.join()
     stderr = "".join(lines)
     if proc.returncode not in (0, 1) or len(marks) != len(_MARKS):
-        sys.exit(f"bench_sil: run failed (exit {proc.returncode}):\n{stderr}")
+        errors = [line for line in lines if "error:" in line]
+        print(f"          run failed (exit {proc.returncode}): "
+              f"{errors[-1].strip() if errors else stderr[-300:]}", flush=True)
+        return None, proc.returncode, stderr
     times, last = {}, 0.0
     for phase, _ in _MARKS:
         times[phase] = marks[phase] - last
@@ -121,25 +124,34 @@ def main():
         print(f"bench_sil: scenario {args.scenario} ({span_s:g} s), table {table}, "
               f"{args.repeat} run(s) per variant; load average {os.getloadavg()[0]:.2f}")
         results = {label: [] for label, _ in variants}
+        failures = {}
         # one warm-up run per variant (numba cache, page cache), not counted
         for j, (_label, path) in enumerate(variants):
             _run(args, table, scratch / "runs", f"warm-v{j}", path)
         for i in range(args.repeat):
             for j, (label, path) in enumerate(variants):
                 times, code, _ = _run(args, table, scratch / "runs", f"r{i}-v{j}", path)
+                if times is None:
+                    failures[label] = failures.get(label, 0) + 1
+                    continue
                 results[label].append(times)
                 print(_line(f"{label[:9]}", times, span_s)
                       + f"  (exit {code}, load {os.getloadavg()[0]:.2f})", flush=True)
         print("medians:")
         medians = {label: {p: statistics.median(t[p] for t in runs) for p in PHASES}
-                   for label, runs in results.items()}
+                   for label, runs in results.items() if runs}
         for label, med in medians.items():
             print(_line(label[:9], med, span_s))
         cur = medians["current"]
         for label, _ in variants[:-1]:
+            if label not in medians:
+                continue
             base = medians[label]
             print(f"ratio {label}/current: " + "  ".join(
                 f"{p} {base[p] / cur[p]:.2f}" for p in PHASES if cur[p] > 0))
+        if failures:
+            print("failed runs (not in the medians): " + ", ".join(
+                f"{label} {n}" for label, n in failures.items()))
         print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 

@@ -59,6 +59,15 @@ PUBLISHERS: Mapping[str, str] = {
 }
 
 
+REANNOUNCE_S = 0.1
+"""Period of the repeated announcement while the barrier is incomplete [s]. Discovery is not
+symmetric in time: an announcement written when this participant's /vega/ready writer had
+matched a peer's reader, but that reader not yet the writer, is dropped by the peer and
+repaired only at the writer's next heartbeat (Fast DDS: up to 3 s): the start barrier took
+either ≈ 2 s or ≈ 4.3 s on the loaded machine, never between (docs/SIL_SPEED.md). Announcing
+again costs one small message per participant per period."""
+
+
 class StartBarrier:
     """One participant's side of the start barrier (module docstring).
 
@@ -104,6 +113,7 @@ class StartBarrier:
                 self._expect_pub.append((sub, topic, name))
         self.ready: set[str] = set()
         self.announced = False
+        self._next_announce = 0.0
         self._String = String
         self._pub = node.create_publisher(String, READY.name, control_qos())
         self._sub = node.create_subscription(String, READY.name, self._on_ready, control_qos())
@@ -126,11 +136,19 @@ class StartBarrier:
         return True
 
     def poll(self) -> bool:
-        """Announce readiness once matched; return :attr:`complete`."""
-        if not self.announced and self.matched():
-            self._pub.publish(self._String(data=self.name))
-            self.announced = True
+        """Announce readiness once matched, and again every :data:`REANNOUNCE_S` until the
+        barrier is complete; return :attr:`complete`."""
+        if not self.announced:
+            if self.matched():
+                self._announce()
+                self.announced = True
+        elif not self.complete and time.monotonic() >= self._next_announce:
+            self._announce()
         return self.complete
+
+    def _announce(self) -> None:
+        self._pub.publish(self._String(data=self.name))
+        self._next_announce = time.monotonic() + REANNOUNCE_S
 
     @property
     def complete(self) -> bool:
