@@ -121,3 +121,120 @@ def test_run_info_without_a_scenario_is_a_bag_error(tmp_path):
     with pytest.raises(bagio.BagError, match=r"no usable scenario in the metadata \(.+\); "
                                              r"cannot replay the controller"):
         replay._run_info(_bag(tmp_path))
+
+
+# ------------------------------------------- check_controller with the ROS plumbing replaced
+@pytest.fixture(scope="module")
+def short_bag(tmp_path_factory):
+    from fixture_bags import short_run, write_bag
+
+    run = short_run(tmp_path_factory.mktemp("run"), span_s=(20.0, 20.5))
+    return write_bag(tmp_path_factory.mktemp("bag") / "bag", run)
+
+
+class _Capture:
+    """Fakes of the ROS plumbing that record what check_controller hands them."""
+
+    def __init__(self, answer=None, failure=None):
+        self.answer, self.failure = answer, failure
+        self.published, self.params, self.feed = [], None, None
+
+    def install(self, monkeypatch):
+        from contextlib import contextmanager
+        from types import SimpleNamespace
+
+        import vega_bus.barrier
+
+        cap = self
+
+        class Node:
+            def create_publisher(self, *args, **kwargs):
+                return SimpleNamespace(publish=cap.published.append)
+
+            def create_subscription(self, *args, **kwargs):
+                return SimpleNamespace()
+
+        @contextmanager
+        def ros_node(name):
+            assert name == replay.CHECKER_NAME
+            yield Node(), SimpleNamespace()
+
+        class Controller:
+            def __init__(self, params, workdir, env):
+                cap.params = params
+
+            def stop(self):
+                pass
+
+        def feed(controller, barrier, executor, ins_pub, ins_raw, samples_ms, period_ms,
+                 received, barrier_timeout_s, say):
+            cap.feed = dict(ins_raw=ins_raw, samples_ms=samples_ms, period_ms=period_ms,
+                            barrier_timeout_s=barrier_timeout_s, say=say)
+            if cap.answer is not None:
+                received.extend(cap.answer)
+            return cap.failure
+
+        monkeypatch.setattr(replay, "_ros_node", ros_node)
+        monkeypatch.setattr(replay, "_ControllerProcess", Controller)
+        monkeypatch.setattr(replay, "_feed", feed)
+        monkeypatch.setattr(vega_bus.barrier, "StartBarrier", lambda *a, **k: SimpleNamespace())
+        return self
+
+
+def test_check_controller_hands_the_bag_to_the_controller(monkeypatch, short_bag):
+    import json
+
+    recorded = [bytes(d) for _, _, d in bagio.iter_raw_messages(short_bag,
+                                                                {topics.TVC_CMD.name})]
+    ins = [bytes(d) for _, _, d in bagio.iter_raw_messages(short_bag, {topics.INS.name})]
+    bag = bagio.read_run_bag(short_bag)
+    meta = bag.metadata
+    cap = _Capture(answer=recorded).install(monkeypatch)
+    said = []
+    check = replay.check_controller(short_bag, progress=said.append)
+    assert check.identical and check.recorded == check.replayed == len(recorded)
+    # the controller process: the recorded scenario, seed and table, not real time, no bag
+    p = cap.params
+    assert p.scenario == meta[bagio.META_SCENARIO]
+    assert p.seed == int(meta[bagio.META_SEED])
+    assert p.realtime is False and p.bag_path == ""
+    assert p.controller_table == str(Path(meta[bagio.META_CONTROLLER_TABLE]).resolve())
+    assert p.participants == ("tvc_controller", "recorder")
+    assert p.barrier_timeout_s == 60.0
+    # the feeding loop: every INS message's bytes, its sample instants [ms], the period
+    f = cap.feed
+    assert [bytes(d) for d in f["ins_raw"]] == ins and len(ins) > 10
+    want_ms = [int(s) // 1_000_000 for s in bag[topics.INS.name]["sample_stamp_ns"]]
+    assert f["samples_ms"].dtype.kind == "i" and f["samples_ms"].tolist() == want_ms
+    assert f["period_ms"] == 20          # vehicle.yaml controller.rate_hz 50 Hz
+    assert f["barrier_timeout_s"] == 60.0
+    f["say"]("hello")
+    assert said == ["hello"]
+    # the run description published first: the bag's scenario with the bag's guidance
+    info = json.loads(cap.published[0].data)
+    assert info["guidance"] == meta.get(bagio.META_GUIDANCE_REFERENCE, "none")
+
+
+def test_check_controller_defaults_and_options(monkeypatch, short_bag):
+    recorded = [bytes(d) for _, _, d in bagio.iter_raw_messages(short_bag,
+                                                                {topics.TVC_CMD.name})]
+    cap = _Capture(answer=recorded).install(monkeypatch)
+    other = CONFIG / "tvc_controller.npz"
+    check = replay.check_controller(short_bag, table=other, barrier_timeout_s=7.5)
+    assert cap.params.barrier_timeout_s == 7.5 and cap.feed["barrier_timeout_s"] == 7.5
+    assert cap.params.controller_table == str(other.resolve())
+    assert check.table == str(other)
+    assert len(check.notes) == 1 and check.notes[0].startswith(
+        f"{other} differs from the table the run was recorded with")
+    # without a progress callback the loop still gets a callable that returns nothing
+    cap = _Capture(answer=recorded).install(monkeypatch)
+    replay.check_controller(short_bag)
+    assert cap.feed["say"]("x") is None
+
+
+def test_check_controller_bad_input_from_the_controller_is_bad_input(monkeypatch, short_bag):
+    _Capture(answer=[], failure=replay._Failed(2, "controller: bad table")).install(monkeypatch)
+    with pytest.raises(BadInput, match="^controller: bad table$"):
+        replay.check_controller(short_bag)
+    f = replay._Failed(1, "stalled")
+    assert f.code == 1 and str(f) == "stalled"
