@@ -49,9 +49,10 @@ from offline_synthesis.sdp_ipm import solve_conic, solve_conic_hsde
 __all__ = ["SynthesisError", "LpvSynthesisResult", "synthesize"]
 
 _ACCEPTED_STATUSES = (cp.OPTIMAL, cp.OPTIMAL_INACCURATE)
-# The in-house interior-point method (sdp_ipm.py, normal equations): the default solver since
-# issue 10; Clarabel (sparse LDLᵀ of the whole KKT system) is the fallback. Not a cvxpy solver
-# name: the problem is canonicalised for Clarabel (same cone convention) and solved here.
+# The in-house interior-point method (sdp_ipm.py, normal equations; issue 10), selected with
+# solver="IPM" (pipeline.SOLVER_PATHS["ipm"]), Clarabel (sparse LDLᵀ of the whole KKT system) as
+# its fallback. Not a cvxpy solver name: the problem is canonicalised for Clarabel (same cone
+# convention) and solved here.
 IPM = "IPM"
 _SOLVER_OPTIONS = {
     # faer: multithreaded supernodal LDLᵀ (qdldl is ~20× slower on the 19-state problem);
@@ -409,7 +410,10 @@ def _solve_ipm(problem, embedding=False):
             answer = solve_conic_hsde(data["A"], data["b"], data["c"], dims.psd, dims.nonneg,
                                       tol_gap_rel=1e-2, tol_dual=1e-3, reduced_tol=1e-2)
         else:
-            answer = solve_conic(data["A"], data["b"], data["c"], dims.psd, dims.nonneg)
+            # centring floor 0.3 after short steps: without it stage 1 of the 26-point grid
+            # stalled at a relative gap of 1.8 %; with it, 2.2e-4 (docs/SYNTHESIS.md §8)
+            answer = solve_conic(data["A"], data["b"], data["c"], dims.psd, dims.nonneg,
+                                 centring_floor=0.3)
         inverse[-1].solver_options = {}
         with warnings.catch_warnings():
             warnings.filterwarnings("ignore", message="Solution may be inaccurate")
@@ -590,8 +594,8 @@ def synthesize(plant, rate_bounds=None, basis="quadratic", x_constant=False, bac
     solver : str
         A cvxpy solver name ("CLARABEL", the default: the path that produced the shipped
         table), or "IPM": the interior-point method of sdp_ipm.py (normal equations; stage 1
-        only, experimental: ≈ 6× faster stage 1 on the 3-point problem, not yet verified on
-        the shipped 26-point grid and its dense certificate; docs/SYNTHESIS.md §8).
+        by the infeasible-start iteration, stage 2 on the self-dual embedding; verified on
+        the shipped 26-point grid with its dense certificate, docs/SYNTHESIS.md §8).
     fallback : str, tuple of str or None
         Solvers tried in turn when the first answer is not accepted (None: no fallback).
     eps : float
@@ -615,10 +619,10 @@ def synthesize(plant, rate_bounds=None, basis="quadratic", x_constant=False, bac
         Schur-reduced with h ≥ g² (smaller cones, ≈ 1.6× faster per Clarabel iteration on 3
         points; the same feasible set).
     stage2_solvers : tuple of str, optional
-        Solvers for stage 2 in turn (default: ``solver`` and ``fallback``, as stage 1). The
-        IPM solves stage 2 on the self-dual embedding on 3, 9 and 26 points, but its stage 1
-        stalled at a relative gap of 2 % on the 26-point grid (docs/SYNTHESIS.md §8), so a
-        path may use Clarabel for stage 1 and the IPM for stage 2.
+        Solvers for stage 2 in turn (default: ``solver`` and ``fallback``, as stage 1); e.g.
+        Clarabel for stage 1 and the IPM for stage 2 (pipeline.SOLVER_PATHS["hybrid"], the
+        answer to the IPM's stage-1 stall on 26 points before its centring floor;
+        docs/SYNTHESIS.md §8).
 
     Returns
     -------

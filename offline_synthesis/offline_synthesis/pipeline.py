@@ -41,9 +41,9 @@ __all__ = ["thesis_scenario_metrics", "GRIDS", "RATE_BOXES", "SOLVER_PATHS", "gr
 
 # Solver paths of the LPV synthesis (docs/SYNTHESIS.md §8): "ipm" = the in-house interior point
 # (sdp_ipm.py) on the Schur-reduced stage-1 LMIs and, on the self-dual embedding, for stage 2,
-# Clarabel then SCS as fallbacks (solves the 3- and 9-point problems; its stage 1 stalls on the
-# 26-point grid and falls back to Clarabel); "hybrid" = Clarabel on the Schur-reduced stage 1,
-# the IPM for stage 2; "clarabel" = the path that produced the shipped table.
+# Clarabel then SCS as fallbacks (solves the 3-, 9- and 26-point problems); "hybrid" = Clarabel
+# on the Schur-reduced stage 1, the IPM for stage 2; "clarabel" = the path that produced the
+# shipped table (the default of `vega synth` until a faster path meets the issue-10 targets).
 SOLVER_PATHS = {
     "ipm": {"solver": "IPM", "fallback": ("CLARABEL", "SCS"), "stage1_form": "reduced"},
     "hybrid": {"solver": "CLARABEL", "fallback": "SCS", "stage1_form": "reduced",

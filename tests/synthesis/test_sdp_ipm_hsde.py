@@ -9,7 +9,7 @@ import pytest
 from offline_synthesis.gridded_plant import GriddedPlant
 from offline_synthesis.lpv_synthesis import IPM, synthesize
 from offline_synthesis.pipeline import SOLVER_PATHS, run_synthesis
-from offline_synthesis.sdp_ipm import solve_conic_hsde
+from offline_synthesis.sdp_ipm import solve_conic, solve_conic_hsde
 from vega_core.errors import BadArgument
 
 from test_lmi_lpv import RATES, RHO, plant_at
@@ -137,3 +137,19 @@ def test_stage1_on_clarabel_stage2_on_the_ipm():
 def test_unknown_solver_path_is_refused_before_anything_runs():
     with pytest.raises(BadArgument, match="solver path 'fast'"):
         run_synthesis(solver_path="fast", progress=lambda line: None)
+
+
+def test_centring_floor_of_the_infeasible_start_keeps_the_optimum():
+    """solve_conic(centring_floor=0.3) (used for stage 1 since it closed the 26-point gap) on the
+    largest-eigenvalue SDP: the same optimum λ_max(C)."""
+    rng = np.random.default_rng(5)
+    B = rng.standard_normal((8, 8))
+    C = B + B.T
+    t = cp.Variable()
+    problem = cp.Problem(cp.Minimize(t), [t * np.eye(8) - C >> 0, t <= 100.0])
+    data, chain, inverse = problem.get_problem_data(cp.CLARABEL)
+    dims = data["dims"]
+    answer = solve_conic(data["A"], data["b"], data["c"], dims.psd, dims.nonneg,
+                         centring_floor=0.3, tol_gap_rel=1e-8, tol_gap_abs=1e-9, tol_feas=1e-9)
+    assert answer.status in ("Solved", "AlmostSolved")
+    assert answer.obj_val == pytest.approx(np.linalg.eigvalsh(C)[-1], abs=1e-6)
