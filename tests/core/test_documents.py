@@ -71,3 +71,55 @@ def test_newlines_are_normalised_as_in_text_mode(tmp_path):
     path = tmp_path / "crlf.yaml"
     path.write_bytes(b"a: 1\r\nb: 2\rc: 3\n")
     assert read_text(path, "x") == "a: 1\nb: 2\nc: 3\n"
+
+
+_FIFO = """
+import sys
+from vega_core.documents import read_text
+from vega_gnc.config_files import read_npz
+from vega_gnc.controller_table import ControllerTableError
+for call in (lambda: read_text(sys.argv[1], "scenario"),
+             lambda: read_npz(sys.argv[1], ControllerTableError, "controller table")):
+    try:
+        call()
+    except Exception as exc:
+        print(type(exc).__name__ + ": " + str(exc))
+"""
+
+
+def test_a_fifo_is_refused_before_it_is_opened(tmp_path):
+    """Opening a FIFO blocks until a writer comes (adversarial pass of issue 11: `--scenario
+    FIFO`, `--table FIFO` and a node's `--params-file FIFO` hung for ever): refused in one
+    line, as a scenario and as a controller table (in a child process with a time limit, so
+    that a regression hangs the child, not the suite)."""
+    fifo = tmp_path / "pipe.yaml"
+    os.mkfifo(fifo)
+    done = subprocess.run([sys.executable, "-c", _FIFO, str(fifo)], capture_output=True,
+                          text=True, timeout=60)
+    assert done.stdout.splitlines() == [
+        f"BadFile: {fifo}: cannot read scenario (a FIFO or socket, not a regular file)",
+        f"ControllerTableError: {fifo}: cannot read controller table (a FIFO or socket, not a "
+        "regular file)"], done
+
+
+def test_a_fifo_scenario_is_one_line_and_exit_2(tmp_path):
+    """The same through the CLI: `vega sil run --scenario FIFO`, exit 2, one line."""
+    fifo = tmp_path / "pipe.yaml"
+    os.mkfifo(fifo)
+    done = subprocess.run([sys.executable, "-m", "vega_cli.cli", "sil", "run", "--scenario",
+                           str(fifo), "--out", str(tmp_path / "run")], capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 2, done
+    assert done.stderr.count("\n") == 1 and "a FIFO or socket" in done.stderr, done.stderr
+
+
+@pytest.mark.parametrize("text", ["[" * 100_000, "a:\n" + "- " * 50_000 + "x\n",
+                                  "{a: " * 100_000])
+def test_yaml_nested_too_deeply_is_one_line(text):
+    """A small file nested 100 000 levels deep made the YAML parser exhaust the stack
+    (RecursionError, a traceback, exit 1; adversarial pass of issue 11): one line now."""
+    from vega_core.documents import parse_yaml
+
+    with pytest.raises(BadFile) as err:
+        parse_yaml(text, "deep.yaml")
+    assert str(err.value) == "deep.yaml: YAML nested too deeply"

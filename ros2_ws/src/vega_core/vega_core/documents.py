@@ -17,15 +17,34 @@ flight-condition table (0.1 s rows over 110 s), ~270 kB.
 from __future__ import annotations
 
 import os
+import stat
 from pathlib import Path
 from typing import Any
 
 from vega_core.errors import BadFile
 
-__all__ = ["MAX_DOCUMENT_BYTES", "read_text", "parse_yaml", "load_yaml"]
+__all__ = ["MAX_DOCUMENT_BYTES", "read_text", "parse_yaml", "load_yaml", "refuse_pipe"]
 
 MAX_DOCUMENT_BYTES = 1 << 20
 """Largest document :func:`read_text` accepts by default [bytes] (1 MiB; module docstring)."""
+
+
+def refuse_pipe(path: str | Path, what: str, error: type[Exception] = BadFile) -> None:
+    """Refuse a FIFO or a socket as an input file, before it is opened: opening a FIFO blocks
+    until some other process writes to it, so ``--scenario FIFO`` would hang with no word.
+    (Missing files and other problems are left to the reader's own one-line errors.)
+
+    Raises
+    ------
+    error
+        ``"<path>: cannot read <what> (a FIFO or socket, not a regular file)"``.
+    """
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return
+    if stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode):
+        raise error(f"{path}: cannot read {what} (a FIFO or socket, not a regular file)")
 
 
 def read_text(path: str | Path, what: str, error: type[Exception] = BadFile,
@@ -52,6 +71,7 @@ def read_text(path: str | Path, what: str, error: type[Exception] = BadFile,
         large — one line, no traceback chain.
     """
     limit = _size_text(max_bytes)
+    refuse_pipe(path, what, error)
     try:
         with open(path, "rb") as stream:
             size = os.fstat(stream.fileno()).st_size
@@ -91,13 +111,17 @@ def parse_yaml(text: str, source: str, error: type[Exception] = BadFile) -> dict
     Raises
     ------
     error
-        ``"<source>: not valid YAML (line <n>)"`` (the line when the parser knows it) or
+        ``"<source>: not valid YAML (line <n>)"`` (the line when the parser knows it),
+        ``"<source>: YAML nested too deeply"`` (the parser recurses once per level: a small
+        file nested 100 000 levels deep exhausts the interpreter's stack) or
         ``"<source>: top level must be a mapping"``.
     """
     import yaml
 
     try:
         tree = yaml.safe_load(text)
+    except RecursionError:
+        raise error(f"{source}: YAML nested too deeply") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = f" (line {mark.line + 1})" if mark is not None else ""

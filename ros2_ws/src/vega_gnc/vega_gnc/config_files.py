@@ -16,6 +16,7 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
+from vega_core.documents import refuse_pipe
 from vega_core.errors import BadFile, BadInput
 
 __all__ = ["read_npz", "check_header", "numeric_arrays", "installed_config"]
@@ -23,7 +24,9 @@ __all__ = ["read_npz", "check_header", "numeric_arrays", "installed_config"]
 
 def read_npz(path: str, error: type[BadFile], what: str) -> dict[str, np.ndarray]:
     """Every array of the ``.npz`` file ``path`` (no pickles); ``what`` names the kind of file
-    in the error (e.g. "controller table")."""
+    in the error (e.g. "controller table"). A FIFO or socket is refused before it is opened
+    (:func:`vega_core.documents.refuse_pipe`: opening a FIFO would block)."""
+    refuse_pipe(path, what, error)
     try:
         with np.load(path, allow_pickle=False) as npz:
             return {key: npz[key] for key in npz.files}
