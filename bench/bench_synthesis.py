@@ -2,6 +2,7 @@
 
 Usage: OPENBLAS_NUM_THREADS=1 .venv/bin/vega-env python bench/bench_synthesis.py [--compare]
        [--points 30,40,50 | --grid thesis|refined] [--path ipm|hybrid] [--full-chain]
+       [--chain-only]
 
 Prints the wall time of the weighted plants, of stage 1 (min γ) and stage 2 (back-off) of the
 rate-bounded synthesis on the thesis grid with the shipped weights (solver time and iterations
@@ -19,7 +20,7 @@ other; new: IPM, LTI bounds and quadratic synthesis in a second process), with t
 certificate. --path picks the new path (default ipm; hybrid = Clarabel stage 1, IPM stage 2,
 the path for the 26-point grid, docs/SYNTHESIS.md §8). --points gives other grid times (e.g.
 30,40,50 for the 3-point problem of issue 10), --grid a named grid (the chain runs on the grid
-named by --grid, default refined).
+named by --grid, default refined); --chain-only skips the synthesis comparison.
 """
 
 import os
@@ -118,7 +119,8 @@ def main():
     t_plant = time.perf_counter() - t0
     if "--compare" in args:
         print(f"weighted plants ({times.size} points): {t_plant:.2f} s")
-        _compare(plant, rates, path)
+        if "--chain-only" not in args:
+            _compare(plant, rates, path)
         if "--full-chain" in args:
             _compare_chain(grid or "refined", ctx, path)
         return
