@@ -105,3 +105,11 @@ def test_run_metadata_keys_and_values(tmp_path, repo):
     assert meta["vega.plant"] == "nonlinear" and meta["vega.n"] == "3"
     # default revision: the package checkout's
     assert run_metadata("n", "y", 1, table)[META_GIT_REVISION] == git_revision()
+
+
+def test_repository_without_a_commit_is_unknown(tmp_path):
+    """`git rev-parse HEAD` fails (prints "HEAD" on stdout) while `git status` works."""
+    r = tmp_path / "empty"
+    r.mkdir()
+    _git(r, "init", "-q")
+    assert git_revision(r) == "unknown"
