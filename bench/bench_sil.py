@@ -14,7 +14,11 @@ plant) and times, from the moment the command is started, the lines it writes on
   end of the run and the nodes' exit);
 * ``report``: from there to the report line (bag read, checked, plots written);
 * ``exit``: from there to the end of the process;
-* ``total``: the whole command, and the real-time factor = simulated span / total.
+* ``total``: the whole command, and the real-time factor = simulated span / total;
+* ``cpu``: the CPU time (user + system) of the command and its five nodes, from
+  ``getrusage(RUSAGE_CHILDREN)`` — far less sensitive to other jobs on the machine than the
+  wall times (on the shared 2-core machine at load 10–15 a flight's wall time varied 4.5–12 s
+  between identical runs), and on two cores a lower bound of twice the wall time.
 
 With ``--baseline REV`` (e.g. the commit before a change; repeat it for a ladder of
 revisions) the same runs are made with the packages this benchmark is about (vega_bus,
@@ -31,6 +35,7 @@ The run directories go to a temporary directory that is removed afterwards.
 
 import argparse
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -43,7 +48,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("vega_bus", "vega_plant", "vega_bags", "vega_bringup", "vega_cli")
-PHASES = ("validate", "barrier", "flight", "report", "exit", "total")
+PHASES = ("validate", "barrier", "flight", "report", "exit", "total", "cpu")
 _MARKS = (("validate", "vega sil: scenario "), ("barrier", "start barrier complete"),
           ("flight", "vega sil: flew "), ("report", "vega sil: report "))
 
@@ -65,6 +70,7 @@ def _run(args, table, out, run_id, pythonpath):
         env["PYTHONPATH"] = os.pathsep.join([*pythonpath, env.get("PYTHONPATH", "")])
     command = [sys.executable, "-m", "vega_cli.cli", "sil", "run", "--scenario", args.scenario,
                "--table", str(table), "--out", str(out), "--run-id", run_id]
+    usage0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.monotonic()
     proc = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             text=True, bufsize=1)
@@ -95,6 +101,8 @@ def _run(args, table, out, run_id, pythonpath):
         last = marks[phase]
     times["exit"] = total - last
     times["total"] = total
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    times["cpu"] = (usage.ru_utime - usage0.ru_utime) + (usage.ru_stime - usage0.ru_stime)
     return times, proc.returncode, stderr
 
 
