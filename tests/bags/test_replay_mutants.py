@@ -238,3 +238,38 @@ def test_check_controller_bad_input_from_the_controller_is_bad_input(monkeypatch
         replay.check_controller(short_bag)
     f = replay._Failed(1, "stalled")
     assert f.code == 1 and str(f) == "stalled"
+
+
+def _actuator(samples):
+    import numpy as np
+
+    store = bagio.vega_typestore()
+    T = store.types["vega_msgs/msg/ActuatorState"]
+    Time = store.types["builtin_interfaces/msg/Time"]
+    Header = store.types["std_msgs/msg/Header"]
+    arr = np.array(samples, dtype=np.float64)
+    return T(header=Header(stamp=Time(sec=1, nanosec=0), frame_id=""), seq=1,
+             deflection_rad=0.0, rate_radps=0.0, accel_radps2=0.0, deflection_samples_rad=arr,
+             rate_samples_radps=np.zeros(arr.size), accel_samples_radps2=np.zeros(arr.size),
+             sample_period_s=0.001)
+
+
+def test_array_fields_are_compared_by_shape_and_bytes():
+    assert replay._diff(_actuator([0.1, 0.2]), _actuator([0.1, 0.2])) is None
+    assert replay._diff(_actuator([0.1, 0.2]), _actuator([0.1, 0.3])) == (
+        "deflection_samples_rad: recorded [0.1, 0.2], replayed [0.1, 0.3]")
+    assert replay._diff(_actuator([0.1, 0.2]), _actuator([0.1, 0.2, 0.0])).startswith(
+        "deflection_samples_rad: recorded [0.1, 0.2], replayed [0.1, 0.2, 0.0]")
+    assert replay._diff(_actuator([0.0]), _actuator([-0.0])) is not None
+
+
+def test_an_integer_and_a_float_are_compared_as_floats_bit_for_bit():
+    assert not replay._same(0, -0.0) and not replay._same(-0.0, 0)
+    assert replay._same(3, 3.0)
+
+
+def test_stamp_of_a_difference_is_rounded_from_exact_seconds():
+    """nanosec 13 500 000: 20.0135 s is printed 20.014 (3 decimals)."""
+    _, diff = replay.first_difference([_cmd(nanosec=13_500_000)],
+                                      [_cmd(nanosec=13_500_000, seq=4)])
+    assert diff.startswith("command #0 (recorded seq 3, stamp 20.014 s): seq:")
