@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import time
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -247,9 +248,11 @@ def run_synthesis(grid: str = "refined", weights: str = "shipped", out: str | Pa
     if parallel:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
-        # fork, before any solver has started threads (spawn would re-import the caller's
-        # __main__, which breaks scripts without a main guard)
-        worker = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork"))
+        # spawn, not fork: a worker forked from a process that had run Clarabel before (its
+        # thread pool) hung on an inherited lock (a second run_synthesis in the same process).
+        # Spawn re-imports the caller's __main__, so a script without a main guard cannot
+        # start the worker: then the two stages run here after all (below).
+        worker = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
         side = worker.submit(_lti_and_quadratic, points, plant, quadratic_options)
     else:
         side_result = _lti_and_quadratic(points, plant, quadratic_options)
@@ -259,7 +262,14 @@ def run_synthesis(grid: str = "refined", weights: str = "shipped", out: str | Pa
         rep.stage_times_s["lpv_rate_bounded"] = clock() - t0
         t0 = clock()
         if worker is not None:
-            side_result = side.result()
+            try:
+                side_result = side.result()
+            except BrokenProcessPool:
+                progress("second process failed to start; LTI bounds and quadratic synthesis "
+                         "run here")
+                worker.shutdown()
+                worker = None
+                side_result = _lti_and_quadratic(points, plant, quadratic_options)
         waited = clock() - t0
     finally:
         if worker is not None:
