@@ -536,7 +536,9 @@ def envelope_table(alpha_max_rad: float, conditions: FlightConditions | None = N
     or above the largest Mach reached, chosen greedily (each segment as long as it can be) so
     that the linear interpolation of the table (values rounded to 0.1 Pa·deg) stays within
     ``max(rel_tol · exact, abs_tol)`` of the exact envelope at every trajectory sample; with a
-    floor the table starts ``[0, mach_min]`` at the floor value (constant below ``mach_min``).
+    floor the table holds the floor value from Mach 0 (constant below ``mach_min``; a floor other
+    than the envelope's value at ``mach_min`` ends one ``step`` below it, the jump a ramp over
+    that step, since the file's Mach breakpoints must rise strictly).
 
     Returns
     -------
@@ -575,8 +577,15 @@ def envelope_table(alpha_max_rad: float, conditions: FlightConditions | None = N
     mach = np.array(points)
     values = rounded(mach)
     if mach_min > 0.0:
-        mach = np.concatenate([[0.0], mach])
-        values = np.concatenate([[values[0]], values])
+        floor = float(rounded(np.array([0.0]))[0])      # the envelope below mach_min
+        if floor == values[0] or mach_min <= step:
+            mach = np.concatenate([[0.0], mach])
+            values = np.concatenate([[floor], values])
+        else:
+            # a floor other than the value at mach_min: constant up to one step below it, then
+            # the step as a ramp over that last Mach step (the file's Mach must rise strictly)
+            mach = np.concatenate([[0.0, mach_min - step], mach])
+            values = np.concatenate([[floor, floor], values])
     return mach, values
 
 
