@@ -1,13 +1,15 @@
 """Graft the grid points of one structured controller table into another, inside a time window.
 
-Used once, on 2026-11-27, to make the shipped table (docs/FLIGHT_DESIGN.md §4, "How the shipped
-table was made"): the grid points 18–28 s of the repair run of 2026-11-26 (`vega design
---repair-from`, which met the exact bending criterion on the 222-plant design set there but was
-not shippable as a whole) replace those of the table flown before; `vega design --drift-from`
-then applies step 6. Every grid point of the window and the flown (interpolated) controller
-midway across both window edges are evaluated on their design sets and printed with their
-requirement misses (offline_synthesis.structured.requirement_misses); nothing is written when
-a grafted point or an edge midpoint adds a miss to what the base table had there.
+Used on 2026-11-27 to make the shipped table (docs/FLIGHT_DESIGN.md §4, "Two changes on
+2026-11-27"): grid points of the repair run of 2026-11-26 (`vega design --repair-from`, which
+met the exact bending criterion on the 222-plant design set at many times but was not
+shippable as a whole) replace those of the table flown before, in three windows (18–28 s,
+56–64 s, 32–36 s); `vega design --drift-from` applied step 6. Every grid point of the window
+and the flown (interpolated) controller midway across both window edges are evaluated on their
+design sets and printed with their requirement misses
+(offline_synthesis.structured.requirement_misses); nothing is written when a grafted point or
+an edge midpoint adds a miss to what the base table had there. The tuning record lists the
+grafts (``solver.grafts``: window and the source table's SHA-256).
 
 Usage: OPENBLAS_NUM_THREADS=1 .venv/bin/vega-env python tools/design/graft.py BASE OTHER
        START STOP --out FILE.npz
@@ -91,13 +93,25 @@ def main(argv=None) -> int:
         return 1
     tuning = dict(base_meta.get("solver", {}))
     tuning = {k: v for k, v in tuning.items() if k not in ("method", "scipy")}
-    tuning["graft"] = {"window_s": [args.start, args.stop],
-                       "from_sha256": hashlib.sha256(args.other.read_bytes()).hexdigest()}
+    grafts = list(tuning.pop("grafts", []))
+    if "graft" in tuning:                       # the record of the first graft (one window)
+        grafts.append(tuning.pop("graft"))
+    grafts.append({"window_s": [args.start, args.stop],
+                   "from_sha256": hashlib.sha256(args.other.read_bytes()).hexdigest()})
+    tuning["grafts"] = grafts
+    details = [S.evaluate(np.asarray(merged[t], dtype=float),
+                          S.design_set(context, float(t), uset), detail=True)[1] for t in times]
     design = S.StructuredDesign(np.array(times), np.array(
         [context.parameters(float(t)).v_mps for t in times]), np.array([merged[t] for t in times]),
-        [], tuple(base_meta["anchors_s"]), tuning)
+        details, tuple(base_meta["anchors_s"]), tuning)
     S.write_structured_table(args.out, design, context)
-    print(f"wrote {args.out} ({len(times)} grid points)")
+    from offline_synthesis.margins import json_ready
+
+    report = {"table": str(args.out), "grid_times_s": design.grid_times_s,
+              "grid_v_mps": design.grid_v_mps, "anchors_s": design.anchors_s,
+              "tuning": design.tuning, "per_grid_time": design.details}
+    args.out.with_suffix(".json").write_text(json.dumps(json_ready(report), indent=1) + "\n")
+    print(f"wrote {args.out} ({len(times)} grid points) and {args.out.with_suffix('.json')}")
     return 0
 
 
