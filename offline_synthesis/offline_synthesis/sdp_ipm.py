@@ -180,10 +180,9 @@ def solve_conic(A, b, c, psd_dims=(), n_nonneg=0, n_zero=0, max_iter=100, tol_fe
                             verbose, centring_floor)
 
 
-def _solve_conic(A, b, c, psd_dims, n_nonneg, n_zero, max_iter, tol_feas, tol_gap_abs,
-                 tol_gap_rel, reduced_tol, step_fraction, refine_steps, stall_window, verbose,
-                 centring_floor=0.0):
-    start_time = time.perf_counter()
+def _problem(A, b, c, psd_dims, n_nonneg, n_zero):
+    """The problem data as arrays and its cones (nonnegative first, then PSD), checked against
+    the rows of ``A``: (A as CSR, b, c, rows, columns, cones)."""
     if n_zero:
         raise ValueError("sdp_ipm: zero cones are not supported")
     A = sp.csr_matrix(A)
@@ -199,6 +198,14 @@ def _solve_conic(A, b, c, psd_dims, n_nonneg, n_zero, max_iter, tol_feas, tol_ga
         row += cones[-1].d
     if row != m:
         raise ValueError(f"sdp_ipm: cone sizes {row} do not match the {m} rows of A")
+    return A, b, c, m, nv, cones
+
+
+def _solve_conic(A, b, c, psd_dims, n_nonneg, n_zero, max_iter, tol_feas, tol_gap_abs,
+                 tol_gap_rel, reduced_tol, step_fraction, refine_steps, stall_window, verbose,
+                 centring_floor=0.0):
+    start_time = time.perf_counter()
+    A, b, c, m, nv, cones = _problem(A, b, c, psd_dims, n_nonneg, n_zero)
     nu = sum(k.n for k in cones)
     AT = A.T.tocsr()
     b_norm, c_norm = max(1.0, np.linalg.norm(b)), max(1.0, np.linalg.norm(c))
@@ -457,21 +464,7 @@ def _solve_hsde(A, b, c, psd_dims, n_nonneg, n_zero, max_iter, tol_feas, tol_gap
                 tol_gap_rel, tol_infeas, reduced_tol, step_fraction, refine_steps,
                 stall_window, verbose, tol_dual):
     start_time = time.perf_counter()
-    if n_zero:
-        raise ValueError("sdp_ipm: zero cones are not supported")
-    A = sp.csr_matrix(A)
-    b = np.asarray(b, dtype=float)
-    c = np.asarray(c, dtype=float)
-    m, nv = A.shape
-    cones, row = [], 0
-    for _ in range(n_nonneg):
-        cones.append(_Cone(1, row, A))
-        row += 1
-    for n in psd_dims:
-        cones.append(_Cone(int(n), row, A))
-        row += cones[-1].d
-    if row != m:
-        raise ValueError(f"sdp_ipm: cone sizes {row} do not match the {m} rows of A")
+    A, b, c, m, nv, cones = _problem(A, b, c, psd_dims, n_nonneg, n_zero)
     nu = sum(k.n for k in cones) + 1                      # + the (τ, κ) pair
     AT = A.T.tocsr()
     b_norm, c_norm = max(1.0, np.linalg.norm(b)), max(1.0, np.linalg.norm(c))
