@@ -147,3 +147,21 @@ def comparable_payloads(bag_dir, drop_frame_id=False):
     """Every message of a run bag, :func:`by_topic`, payloads :func:`normalised`."""
     return by_topic((topic, log_time, normalised(topic, data, drop_frame_id))
                     for topic, log_time, data in bagio.iter_raw_messages(bag_dir))
+
+
+def write_node_params(path: Path, **values) -> Path:
+    """A node parameters file (``/**: ros__parameters:``) with ``values`` (strings quoted,
+    lists of strings, booleans as YAML true/false), for starting a node by hand."""
+    lines = ["/**:", "  ros__parameters:"]
+    for key, value in values.items():
+        if isinstance(value, bool):
+            text = "true" if value else "false"
+        elif isinstance(value, str):
+            text = f'"{value}"'
+        elif isinstance(value, (list, tuple)):
+            text = "[" + ", ".join(f'"{v}"' for v in value) + "]"
+        else:
+            text = repr(value)
+        lines.append(f"    {key}: {text}")
+    path.write_text("\n".join(lines) + "\n")
+    return path

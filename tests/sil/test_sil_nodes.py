@@ -17,6 +17,7 @@ import pytest
 
 from fixture_tables import write_pd_table
 from load_scaling import budget_s
+from sil_flights import write_node_params
 from vega_bus import qos, topics
 from vega_bus.barrier import PARTICIPANTS
 from vega_bus.schedule import RunInfo
@@ -75,19 +76,7 @@ def _finish(proc, timeout=None):
 
 def _params(path: Path, **values) -> Path:
     values.setdefault("barrier_timeout_s", budget_s(60.0))  # unless the test sets its own
-    lines = ["/**:", "  ros__parameters:"]
-    for key, value in values.items():
-        if isinstance(value, bool):
-            text = "true" if value else "false"
-        elif isinstance(value, str):
-            text = f'"{value}"'
-        elif isinstance(value, (list, tuple)):
-            text = "[" + ", ".join(f'"{v}"' for v in value) + "]"
-        else:
-            text = repr(value)
-        lines.append(f"    {key}: {text}")
-    path.write_text("\n".join(lines) + "\n")
-    return path
+    return write_node_params(path, **values)
 
 
 def _short_scenario(tmp_path, t_end_s=11.0) -> Path:

@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 from load_scaling import budget_s
-from sil_flights import flight_env, wait_for_sim_time, write_short_scenario
+from sil_flights import flight_env, wait_for_sim_time, write_node_params, write_short_scenario
 from vega_bags import bagio
 from vega_bringup import orchestrate
 from vega_bringup.executables import find_executable
@@ -32,6 +32,8 @@ pytestmark = pytest.mark.ros
 SEED = 15_4
 STARTS = 20
 MAX_DELAY_S = 2.0
+FLIGHT_END_S = 18.0
+"""End of the mid-flight runs [s] (they start at 10 s, flown in real time)."""
 
 
 def _handles_sigterm(pid: int) -> bool:
@@ -43,17 +45,7 @@ def _handles_sigterm(pid: int) -> bool:
 
 
 def _params(path: Path, **values) -> Path:
-    lines = ["/**:", "  ros__parameters:"]
-    for key, value in values.items():
-        if isinstance(value, str):
-            text = f'"{value}"'
-        elif isinstance(value, (list, tuple)):
-            text = "[" + ", ".join(f'"{v}"' for v in value) + "]"
-        else:
-            text = repr(value)
-        lines.append(f"    {key}: {text}")
-    path.write_text("\n".join(lines) + "\n")
-    return path
+    return write_node_params(path, **values)
 
 
 def _start(spec, params_file):
@@ -122,8 +114,11 @@ def test_sigterm_at_random_points_of_a_start(tmp_path):
 
 @pytest.fixture(scope="module")
 def short_scenario(tmp_path_factory):
+    # 8 s flown in real time: the test's /clock watcher may see its first message seconds after
+    # the flight began (DDS discovery under load), and the signals must still find it running
+    # (with 3 s the run was sometimes over before the signals: "nobody was stopped")
     return write_short_scenario(tmp_path_factory.mktemp("scenario"), "thesis",
-                                "thesis_sigterm", 10.0, 13.0)
+                                "thesis_sigterm", 10.0, FLIGHT_END_S)
 
 
 @pytest.mark.parametrize("flight", range(4))
@@ -162,4 +157,4 @@ def test_sigterm_to_every_node_mid_flight(tmp_path, short_scenario, flight):
         assert err in ("", f"{name}: stopped by SIGTERM\n"), f"{where} {name}: {err!r}"
     assert any(err for _out, err, _code in results.values()), f"{where}: nobody was stopped"
     truth = bagio.read_run_bag(bag)[topics.TRUTH.name]
-    assert 0 < len(truth) <= 301, where
+    assert 0 < len(truth) <= round((FLIGHT_END_S - 10.0) * 100) + 1, where
