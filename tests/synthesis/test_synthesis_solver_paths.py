@@ -3,9 +3,9 @@
 - sdp_ipm.solve_conic (normal-equations interior point) against Clarabel on a small SDP;
 - the stage-1 LMIs Schur-reduced with h ≥ g² (``stage1_form="reduced"``) against the 3×3-block
   form (``"full"``), both with Clarabel;
-- the default path (IPM stage 1, Clarabel stage 2) against the path before issue 10
-  (Clarabel, full form) on the small LPV plant of test_lmi_lpv.py: γ_min within 0.5 %, both
-  certificates negative.
+- the IPM path (``solver="IPM"`` on the reduced stage-1 LMIs; pipeline.SOLVER_PATHS "ipm") against
+  the Clarabel full-form path that made the shipped table (still the default of `vega synth`)
+  on the small LPV plant of test_lmi_lpv.py: γ_min within 0.5 %, both certificates negative.
 """
 
 import cvxpy as cp
@@ -66,7 +66,7 @@ def test_reduced_stage1_matches_full_form(plant):
     assert reduced.certificate_max_eig < 0.0
 
 
-def test_default_path_matches_the_path_before_issue_10(plant):
+def test_ipm_path_matches_the_clarabel_path(plant):
     old = synthesize(plant, rate_bounds=RATES, solver="CLARABEL", fallback="SCS",
                      stage1_form="full")
     new = synthesize(plant, rate_bounds=RATES, solver="IPM", fallback=("CLARABEL", "SCS"),
