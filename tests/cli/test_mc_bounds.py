@@ -9,6 +9,7 @@ import time
 
 import pytest
 
+from cli_errors import assert_refused
 from vega_cli import cli
 from vega_cli.commands import mc
 
@@ -23,13 +24,7 @@ from vega_cli.commands import mc
 def test_beyond_the_bound_is_one_line_exit_2(tmp_path, capsys, action, option, value, message):
     out = tmp_path / "c"
     args = ["--runs", "3", option, str(value)] if option == "--workers" else [option, str(value)]
-    try:
-        code = cli.main(["mc", action, *args, "--out", str(out)])
-    except SystemExit as exc:       # argparse's usage errors exit from the parser
-        code = exc.code
-    assert code == 2
-    err = capsys.readouterr().err
-    assert message in err and err.count("\n") == 1, err
+    assert_refused(["mc", action, *args, "--out", str(out)], capsys, message)
     assert not out.exists()
 
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from vega_model.actuator import ActuatorParams, TvcActuator, linear_actuator_ss
+from actuator_reference import analytic_step
 from vega_model.vehicle_data import load_vehicle_data
 
 DEG = math.pi / 180.0
@@ -14,15 +15,6 @@ DEG = math.pi / 180.0
 @pytest.fixture(scope="module")
 def params():
     return ActuatorParams.from_vehicle(load_vehicle_data())
-
-
-def _analytic_step(u, t, wn, zeta):
-    """β, β̇ of ω²/(s² + 2ζωs + ω²) for a step u at t = 0 from rest (0 < ζ < 1)."""
-    wd = wn * math.sqrt(1.0 - zeta ** 2)
-    e = np.exp(-zeta * wn * t)
-    beta = u * (1.0 - e * (np.cos(wd * t) + zeta * wn / wd * np.sin(wd * t)))
-    beta_dot = u * wn ** 2 / wd * e * np.sin(wd * t)
-    return beta, beta_dot
 
 
 def test_parameters_from_vehicle(params):
@@ -52,7 +44,7 @@ def test_small_step_matches_analytic_response(params):
     u = 0.1 * DEG
     beta, beta_dot, beta_ddot = act.advance(u, 300)
     t = params.dt_s * np.arange(1, 301)
-    b_ref, r_ref = _analytic_step(u, t, params.wn_radps, params.zeta)
+    b_ref, r_ref = analytic_step(u, t, params.wn_radps, params.zeta)
     assert np.max(np.abs(beta - b_ref)) < 1e-9 * u
     assert np.max(np.abs(beta_dot - r_ref)) < 1e-9 * u * params.wn_radps
     np.testing.assert_allclose(beta_ddot, 1e4 * (u - b_ref) - 100.0 * r_ref, rtol=0,

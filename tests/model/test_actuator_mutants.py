@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from vega_model.actuator import ActuatorParams, TvcActuator
+from actuator_reference import analytic_step
 from vega_model.vehicle_data import load_vehicle_data
 
 DEG = math.pi / 180.0
@@ -20,15 +21,6 @@ DEG = math.pi / 180.0
 @pytest.fixture(scope="module")
 def params():
     return ActuatorParams.from_vehicle(load_vehicle_data())
-
-
-def _analytic_step(u, t, wn, zeta):
-    """β, β̇ of ω²/(s² + 2ζωs + ω²) for a step u at t = 0 from rest (0 < ζ < 1)."""
-    wd = wn * math.sqrt(1.0 - zeta ** 2)
-    e = math.exp(-zeta * wn * t)
-    beta = u * (1.0 - e * (math.cos(wd * t) + zeta * wn / wd * math.sin(wd * t)))
-    beta_dot = u * wn ** 2 / wd * e * math.sin(wd * t)
-    return beta, beta_dot
 
 
 def _advance(act, u, n, path):
@@ -142,7 +134,7 @@ def test_a_linear_step_ending_exactly_on_the_rate_limit_is_not_limited(params, p
     """Step 2 of the law acts only for |β̇'| > R. The smallest command whose first step from
     rest ends at β̇ = R exactly is a linear step: β equals the exact continuous response."""
     rate, dt = params.rate_limit_radps, params.dt_s
-    _, rd = _analytic_step(1.0, dt, params.wn_radps, params.zeta)
+    _, rd = analytic_step(1.0, dt, params.wn_radps, params.zeta)
     u = rate / rd
     act = TvcActuator(params)
     cands = []
@@ -157,7 +149,7 @@ def test_a_linear_step_ending_exactly_on_the_rate_limit_is_not_limited(params, p
         x = math.nextafter(x, 1.0)
     assert cands, "no command within 40 ulps ends at the rate limit"
     x, b = cands[0]
-    b_ref, _ = _analytic_step(x, dt, params.wn_radps, params.zeta)
+    b_ref, _ = analytic_step(x, dt, params.wn_radps, params.zeta)
     assert b == pytest.approx(b_ref, rel=1e-9)
     # the trapezoid of the limited step would give dt/2·R: 3 % off
     assert abs(b - 0.5 * dt * rate) > 0.01 * b_ref
@@ -236,7 +228,7 @@ def test_run_small_step_matches_analytic_response(params):
     betas, rates, accels, _ = act.run([u] * 100)
     for k in (0, 9, 36, 99):
         t = params.dt_s * (k + 1)
-        b_ref, r_ref = _analytic_step(u, t, params.wn_radps, params.zeta)
+        b_ref, r_ref = analytic_step(u, t, params.wn_radps, params.zeta)
         assert betas[k] == pytest.approx(b_ref, rel=1e-9)
         assert rates[k] == pytest.approx(r_ref, rel=1e-9)
         assert accels[k] == pytest.approx(1e4 * (u - b_ref) - 100.0 * r_ref, rel=1e-7)
