@@ -48,3 +48,84 @@ def test_normal_teardown_is_not_cut_short():
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                             timeout=budget_s(30.0), check=False)
     assert result.returncode == 0 and result.stdout == "after close\n" and result.stderr == ""
+
+
+def test_teardown_hanging_with_the_gil_held_still_ends_with_its_stacks():
+    """The watchdog thread needs the GIL; a teardown blocked in C holding it (here: a long
+    builtin sum) is ended by faulthandler's timer thread instead: stacks, exit 1."""
+    script = textwrap.dedent("""
+        import vega_bus.shell as shell
+        shell.SHUTDOWN_GRACE_S = 0.5
+        shell.HARD_SHUTDOWN_MARGIN_S = 0.5
+
+        class HoldsTheGil:
+            def close(self):
+                sum(range(10**13))
+
+        shell._close_with_watchdog("plant", HoldsTheGil(), 0)
+        print("not reached")
+    """)
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                            timeout=budget_s(30.0), check=False)
+    assert result.returncode == 1
+    assert result.stdout == ""
+    assert "Timeout (0:00:01)!" in result.stderr
+    assert "in close" in result.stderr and "middleware shutdown hung" not in result.stderr
+
+
+def test_a_node_writes_its_stacks_on_request_and_goes_on():
+    """SIGUSR1 (the orchestrator's request to a hung node) → every thread's stack on stderr,
+    and the node keeps running (vega_bus.shell.StopFlag)."""
+    import signal
+    import time
+
+    script = textwrap.dedent("""
+        import sys, time
+        from vega_bus.shell import StopFlag
+        StopFlag()
+        print("ready", flush=True)
+        def waiting_for_the_final_report():
+            time.sleep(1.5)
+        waiting_for_the_final_report()
+        print("went on", flush=True)
+    """)
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline() == "ready\n"
+        time.sleep(0.3)
+        proc.send_signal(signal.SIGUSR1)
+        out, err = proc.communicate(timeout=budget_s(30.0))
+    finally:
+        proc.kill()
+    assert proc.returncode == 0 and out == "went on\n"
+    assert "Current thread" in err and "in waiting_for_the_final_report" in err
+
+
+def test_the_orchestrator_asks_a_hung_node_for_its_stacks():
+    """vega_bringup.orchestrate: a node still running long after the others is asked for its
+    stacks (SIGUSR1) before it is stopped, so that its log says where it hung."""
+    import time
+    from types import SimpleNamespace
+
+    from vega_bringup.orchestrate import Supervisor
+
+    script = textwrap.dedent("""
+        import time
+        from vega_bus.shell import StopFlag
+        StopFlag()
+        print("ready", flush=True)
+        def hung_in_teardown():
+            time.sleep(30)
+        hung_in_teardown()
+    """)
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline() == "ready\n"
+        assert Supervisor._dump_stacks([SimpleNamespace(popen=proc)]) is True
+        time.sleep(0.2)
+    finally:
+        proc.kill()
+    _, err = proc.communicate(timeout=budget_s(30.0))
+    assert "in hung_in_teardown" in err

@@ -48,6 +48,7 @@ from pathlib import Path
 from typing import Callable, Iterable, Mapping, Sequence
 
 from vega_bus import barrier, parameters, qos, topics
+from vega_bus.shell import DUMP_STACKS_SIGNAL
 
 __all__ = ["NodeSpec", "PARTICIPANTS", "DEFAULT_BARRIER_TIMEOUT_S", "TERM_GRACE_S",
            "FINISH_GRACE_S", "RunParameters", "RunLayout", "params_yaml", "default_run_id",
@@ -89,6 +90,10 @@ TERM_GRACE_S = 5.0
 FINISH_GRACE_S = 30.0
 """Once one node has ended normally, time the others get to end too [s]: they all end at the
 same t_end, so a node still running after this is hung (its own stall check failed)."""
+
+STACK_DUMP_WAIT_S = 0.5
+"""Time a hung node gets to write its stacks before it is stopped [s] (faulthandler writes
+them from its signal handler at once; this is only the scheduling slack)."""
 
 _BARRIER_MARGIN_S = 5.0
 """The orchestrator's own barrier deadline is the nodes' timeout plus this margin [s], so that
@@ -800,10 +805,27 @@ class Supervisor:
             if len(running) < len(self.processes) and first_end is None:
                 first_end = now
             if first_end is not None and now - first_end > FINISH_GRACE_S:
+                dumped = self._dump_stacks(running)
                 return RunOutcome(
                     "failed", f"node(s) {', '.join(p.name for p in running)} still running "
-                              f"{FINISH_GRACE_S:g} s after the others ended")
+                              f"{FINISH_GRACE_S:g} s after the others ended"
+                              + (" (Python stacks in the node logs)" if dumped else ""))
             self._wait_any(FOREIGN_POLL_S if watcher is not None else 1.0)
+
+    @staticmethod
+    def _dump_stacks(processes: Sequence[NodeProcess]) -> bool:
+        """Ask hung nodes for their Python stacks (:data:`vega_bus.shell.DUMP_STACKS_SIGNAL`,
+        written to their logs); True when at least one was asked."""
+        asked = False
+        for process in processes:
+            try:
+                os.kill(process.popen.pid, DUMP_STACKS_SIGNAL)
+                asked = True
+            except (ProcessLookupError, PermissionError):
+                pass
+        if asked:
+            time.sleep(STACK_DUMP_WAIT_S)
+        return asked
 
     # -- stopping
     def stop(self, grace_s: float | None = None):

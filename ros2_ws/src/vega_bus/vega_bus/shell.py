@@ -33,6 +33,7 @@ in flight nothing but the wait set runs.
 
 from __future__ import annotations
 
+import faulthandler
 import os
 import signal
 import sys
@@ -46,14 +47,18 @@ from vega_core.errors import BadInput, one_line
 
 from vega_bus import network, parameters
 
-__all__ = ["EXIT_OK", "EXIT_RUN_FAILURE", "EXIT_BAD_INPUT", "NodeExit", "Stopped", "StopFlag",
-           "Shell", "RecorderProgress", "run_node", "SeqCheck"]
+__all__ = ["EXIT_OK", "EXIT_RUN_FAILURE", "EXIT_BAD_INPUT", "DUMP_STACKS_SIGNAL", "NodeExit",
+           "Stopped", "StopFlag", "Shell", "RecorderProgress", "run_node", "SeqCheck"]
 
 EXIT_OK = 0
 EXIT_RUN_FAILURE = 1
 EXIT_BAD_INPUT = 2
 
 DEFAULT_STALL_TIMEOUT_S = parameters.STALL_TIMEOUT_S.default
+
+DUMP_STACKS_SIGNAL = signal.SIGUSR1
+"""Signal on which a node writes the Python stacks of all its threads to stderr (its log) and
+goes on (:mod:`faulthandler`)."""
 
 
 class NodeExit(Exception):
@@ -201,6 +206,10 @@ class StopFlag:
         self.signal_name: str | None = None
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, self._on_signal)
+        # a hung node's Python stacks on request (the orchestrator sends SIGUSR1 before it
+        # stops a node that did not end): faulthandler writes them from its C handler, so
+        # they come out even when the main thread is blocked in C holding the GIL
+        faulthandler.register(DUMP_STACKS_SIGNAL, all_threads=True)
 
     def _on_signal(self, signum, _frame) -> None:
         self.signal_name = signal.Signals(signum).name
@@ -623,6 +632,12 @@ machine Fast DDS hung in ``rmw_destroy_node`` (``DomainParticipant::set_listener
 minutes. Everything of the run is delivered and the bag closed before this point, so the
 process then ends without finishing the teardown, with the exit code it already had."""
 
+HARD_SHUTDOWN_MARGIN_S = 3.0
+"""The backstop of :data:`SHUTDOWN_GRACE_S` that needs no GIL comes this much later (s): a
+teardown blocked in C code that holds the GIL starves the watchdog thread;
+:func:`faulthandler.dump_traceback_later` then writes the stacks and ends the process, exit 1
+(seen once in CI: ``ins_sensor`` silent 30 s after a complete run, no line in its log)."""
+
 
 def _close_with_watchdog(name: str, shell: Shell, code: int) -> None:
     """``shell.close()``, but exit the process with ``code`` if it hangs (see above)."""
@@ -636,9 +651,11 @@ def _close_with_watchdog(name: str, shell: Shell, code: int) -> None:
     watchdog = threading.Timer(SHUTDOWN_GRACE_S, give_up)
     watchdog.daemon = True
     watchdog.start()
+    faulthandler.dump_traceback_later(SHUTDOWN_GRACE_S + HARD_SHUTDOWN_MARGIN_S, exit=True)
     try:
         shell.close()
     except Exception:  # noqa: BLE001 - best effort at exit
         pass
     finally:
+        faulthandler.cancel_dump_traceback_later()
         watchdog.cancel()
