@@ -50,10 +50,13 @@ def test_normal_teardown_is_not_cut_short():
     assert result.returncode == 0 and result.stdout == "after close\n" and result.stderr == ""
 
 
-def test_teardown_hanging_with_the_gil_held_still_ends_with_its_stacks():
+@pytest.mark.parametrize("code, status", [(0, -14), (1, 1)])
+def test_teardown_hanging_with_the_gil_held_still_ends_with_its_stacks(code, status):
     """The watchdog thread needs the GIL; a teardown blocked in C holding it (here: a long
-    builtin sum) is ended by faulthandler's timer thread instead: stacks, exit 1."""
-    script = textwrap.dedent("""
+    builtin sum) is ended without it: faulthandler writes the stacks, then a failed run exits 1
+    (faulthandler), a complete one dies of SIGALRM (-14), which the orchestrator reads as
+    "finished, teardown hung"."""
+    script = textwrap.dedent(f"""
         import vega_bus.shell as shell
         shell.SHUTDOWN_GRACE_S = 0.5
         shell.HARD_SHUTDOWN_MARGIN_S = 0.5
@@ -62,15 +65,33 @@ def test_teardown_hanging_with_the_gil_held_still_ends_with_its_stacks():
             def close(self):
                 sum(range(10**13))
 
-        shell._close_with_watchdog("plant", HoldsTheGil(), 0)
+        shell._close_with_watchdog("plant", HoldsTheGil(), {code})
         print("not reached")
     """)
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                             timeout=budget_s(30.0), check=False)
-    assert result.returncode == 1
+    assert result.returncode == status
     assert result.stdout == ""
     assert "Timeout (0:00:01)!" in result.stderr
     assert "in close" in result.stderr and "middleware shutdown hung" not in result.stderr
+
+
+def test_the_orchestrator_counts_a_teardown_watchdog_end_as_finished(tmp_path):
+    """vega_bringup.orchestrate.NodeProcess: status -SIGALRM (the node's own teardown
+    watchdog after a complete run) → returncode 0 and teardown_hung; another signal stays
+    a failure."""
+    import signal
+
+    from vega_bringup.orchestrate import NodeProcess
+
+    ended = {}
+    for sig in (signal.SIGALRM, signal.SIGTERM):
+        proc = subprocess.Popen([sys.executable, "-c",
+                                 f"import os, signal; os.kill(os.getpid(), {int(sig)})"])
+        node = NodeProcess(spec=None, command=[], log_path=tmp_path / "log", popen=proc)
+        node.reap(block=True)
+        ended[sig] = (node.returncode, node.teardown_hung)
+    assert ended == {signal.SIGALRM: (0, True), signal.SIGTERM: (-15, False)}
 
 
 def test_a_node_writes_its_stacks_on_request_and_goes_on():

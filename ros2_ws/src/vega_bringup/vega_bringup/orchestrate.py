@@ -48,7 +48,7 @@ from pathlib import Path
 from typing import Callable, Iterable, Mapping, Sequence
 
 from vega_bus import barrier, parameters, qos, topics
-from vega_bus.shell import DUMP_STACKS_SIGNAL
+from vega_bus.shell import DUMP_STACKS_SIGNAL, TEARDOWN_WATCHDOG_SIGNAL
 
 __all__ = ["NodeSpec", "PARTICIPANTS", "DEFAULT_BARRIER_TIMEOUT_S", "TERM_GRACE_S",
            "FINISH_GRACE_S", "RunParameters", "RunLayout", "params_yaml", "default_run_id",
@@ -343,6 +343,10 @@ class NodeProcess:
     pidfd: int | None = None
     cpu_s: float | None = None
     """CPU time (user + system) the node used [s], once it has ended."""
+    teardown_hung: bool = False
+    """The node finished its run but its middleware teardown hung with the GIL held, and its
+    own watchdog ended it (:data:`vega_bus.shell.TEARDOWN_WATCHDOG_SIGNAL`; counted as status
+    0, with a warning; its Python stacks are in its log)."""
 
     @property
     def name(self) -> str:
@@ -360,7 +364,10 @@ class NodeProcess:
             self.popen.poll()
             return
         if pid:
-            self.popen.returncode = os.waitstatus_to_exitcode(status)
+            code = os.waitstatus_to_exitcode(status)
+            if code == -TEARDOWN_WATCHDOG_SIGNAL:
+                self.teardown_hung, code = True, 0
+            self.popen.returncode = code
             self.cpu_s = usage.ru_utime + usage.ru_stime
 
     @property
@@ -903,7 +910,13 @@ class Supervisor:
         t_end = time.monotonic()
         outcome.returncodes = {p.name: p.returncode for p in self.processes}
         outcome.cpu_s = {p.name: p.cpu_s for p in self.processes}
-        if any(code is not None and code < 0 for code in outcome.returncodes.values()):
+        for process in self.processes:
+            if process.teardown_hung:
+                self.progress(f"warning: {process.name} finished its run, but its middleware "
+                              f"teardown hung and its watchdog ended it (stacks in "
+                              f"{process.log_path})")
+        if any(code is not None and code < 0 for code in outcome.returncodes.values()) or any(
+                p.teardown_hung for p in self.processes):
             clean_shared_memory()
         if t_barrier is not None:
             outcome.barrier_wall_s = t_barrier - t_start

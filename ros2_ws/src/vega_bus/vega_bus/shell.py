@@ -34,6 +34,7 @@ in flight nothing but the wait set runs.
 from __future__ import annotations
 
 import faulthandler
+import math
 import os
 import signal
 import sys
@@ -47,7 +48,8 @@ from vega_core.errors import BadInput, one_line
 
 from vega_bus import network, parameters
 
-__all__ = ["EXIT_OK", "EXIT_RUN_FAILURE", "EXIT_BAD_INPUT", "DUMP_STACKS_SIGNAL", "NodeExit",
+__all__ = ["EXIT_OK", "EXIT_RUN_FAILURE", "EXIT_BAD_INPUT", "DUMP_STACKS_SIGNAL",
+           "TEARDOWN_WATCHDOG_SIGNAL", "NodeExit",
            "Stopped", "StopFlag", "Shell", "RecorderProgress", "run_node", "SeqCheck"]
 
 EXIT_OK = 0
@@ -633,10 +635,20 @@ minutes. Everything of the run is delivered and the bag closed before this point
 process then ends without finishing the teardown, with the exit code it already had."""
 
 HARD_SHUTDOWN_MARGIN_S = 3.0
-"""The backstop of :data:`SHUTDOWN_GRACE_S` that needs no GIL comes this much later (s): a
-teardown blocked in C code that holds the GIL starves the watchdog thread;
-:func:`faulthandler.dump_traceback_later` then writes the stacks and ends the process, exit 1
-(seen once in CI: ``ins_sensor`` silent 30 s after a complete run, no line in its log)."""
+"""The backstop of :data:`SHUTDOWN_GRACE_S` that needs no GIL comes this much later (s).
+
+A teardown blocked in C code that holds the GIL (rclpy's ``destroy_node`` does not release
+it) starves the watchdog thread: seen in CI, ``ins_sensor`` silent for 30 s after a complete
+run, not one line in its log. Then :func:`faulthandler.dump_traceback_later` (a C thread)
+writes the Python stacks to stderr; a node whose run had failed is ended by it, exit 1; a node
+whose run was complete is ended one second later by :data:`TEARDOWN_WATCHDOG_SIGNAL` with its
+default action (:func:`signal.alarm`, no GIL needed either), which the orchestrator reads as
+"finished, teardown hung" (status 0 with a warning): an exit status cannot be chosen without
+the GIL."""
+
+TEARDOWN_WATCHDOG_SIGNAL = signal.SIGALRM
+"""The signal that ends a node whose middleware teardown hung with the GIL held after a
+complete run (:data:`HARD_SHUTDOWN_MARGIN_S`)."""
 
 
 def _close_with_watchdog(name: str, shell: Shell, code: int) -> None:
@@ -651,11 +663,16 @@ def _close_with_watchdog(name: str, shell: Shell, code: int) -> None:
     watchdog = threading.Timer(SHUTDOWN_GRACE_S, give_up)
     watchdog.daemon = True
     watchdog.start()
-    faulthandler.dump_traceback_later(SHUTDOWN_GRACE_S + HARD_SHUTDOWN_MARGIN_S, exit=True)
+    hard_s = SHUTDOWN_GRACE_S + HARD_SHUTDOWN_MARGIN_S
+    faulthandler.dump_traceback_later(hard_s, exit=code != EXIT_OK)
+    if code == EXIT_OK:
+        signal.signal(TEARDOWN_WATCHDOG_SIGNAL, signal.SIG_DFL)
+        signal.alarm(math.ceil(hard_s) + 1)
     try:
         shell.close()
     except Exception:  # noqa: BLE001 - best effort at exit
         pass
     finally:
+        signal.alarm(0)
         faulthandler.cancel_dump_traceback_later()
         watchdog.cancel()
