@@ -4,7 +4,8 @@
 - the stage-1 LMIs Schur-reduced with h ≥ g² (``stage1_form="reduced"``) against the 3×3-block
   form (``"full"``), both with Clarabel;
 - the IPM path (``solver="IPM"`` on the reduced stage-1 LMIs; pipeline.SOLVER_PATHS "ipm") against
-  the Clarabel full-form path that made the shipped table (still the default of `vega synth`)
+  the Clarabel full-form path that made the shipped table (the default of `vega synth` until
+  2026-11-27; "ipm" is now)
   on the small LPV plant of test_lmi_lpv.py: γ_min within 0.5 %, both certificates negative.
 """
 

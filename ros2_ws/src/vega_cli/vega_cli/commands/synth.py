@@ -14,9 +14,11 @@ def _run(args: argparse.Namespace) -> int:
         print(line, flush=True)
 
     rep = run_synthesis(grid=args.grid, weights=args.weights, out=args.out,
-                        progress=progress, verify=not args.no_verify, box=args.rate_box)
+                        progress=progress, verify=not args.no_verify, box=args.rate_box,
+                        solver_path=args.solver_path)
     print()
-    print(f"summary: grid {rep.grid} ({len(rep.times_s)} points), weights {rep.weights}")
+    print(f"summary: grid {rep.grid} ({len(rep.times_s)} points), weights {rep.weights}, "
+          f"solver path {args.solver_path}")
     print(f"  gamma_LTI max {max(rep.gamma_lti):.4f} | gamma_min {rep.gamma_min:.4f} | "
           f"back-off gamma {rep.gamma:.4f} | quadratic {rep.gamma_quadratic:.4f} | "
           f"gamma_min/gamma_LTI {rep.conservatism:.3f}")
@@ -37,9 +39,9 @@ def register(subparsers) -> None:
     """Add the ``synth`` sub-command."""
     p = subparsers.add_parser(
         "synth", help="synthesise, verify and export the LPV controller table",
-        description="Offline LPV synthesis (cvxpy + Clarabel): weighted interconnection on the "
-                    "grid, frozen-point LTI bounds, rate-bounded and quadratic synthesis, "
-                    "verification, Tustin export. Exit status 1 if gamma > 1.")
+        description="Offline LPV synthesis (cvxpy; the in-house IPM, Clarabel): weighted "
+                    "interconnection on the grid, frozen-point LTI bounds, rate-bounded and "
+                    "quadratic synthesis, verification, Tustin export. Exit status 1 if gamma > 1.")
     p.add_argument("--grid", choices=("thesis", "refined", "full"), default="refined",
                    help="refined (default, the shipped table): the thesis' points plus the kinks "
                         "of the plant data, gaps <= 5 s; thesis: t = 10..90 s (9 points); "
@@ -51,6 +53,13 @@ def register(subparsers) -> None:
                         "constant velocity), thesis = [lo, hi] of the trajectory (all positive)")
     p.add_argument("--out", metavar="FILE",
                    help="output .npz (default: ros2_ws/src/vega_gnc/config/lpv_controller.npz)")
+    # literal, not imported: offline_synthesis.pipeline takes 0.7 s to import; a test holds
+    # these equal to pipeline.SOLVER_PATHS and DEFAULT_SOLVER_PATH
+    p.add_argument("--solver-path", choices=("ipm", "hybrid", "clarabel"), default="ipm",
+                   help="ipm (default): the in-house interior point for both stages, Clarabel "
+                        "then SCS as fallbacks; hybrid: Clarabel for stage 1, the IPM for stage "
+                        "2; clarabel: the path that produced the shipped lpv_controller.npz "
+                        "(about 5x slower; docs/SYNTHESIS.md §8)")
     p.add_argument("--no-verify", action="store_true", help="skip the verification stage")
     p.add_argument("--allow-gamma-above-one", action="store_true",
                    help="exit 0 even if the achieved gamma exceeds 1")
