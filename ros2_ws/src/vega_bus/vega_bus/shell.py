@@ -637,9 +637,10 @@ process then ends without finishing the teardown, with the exit code it already 
 HARD_SHUTDOWN_MARGIN_S = 3.0
 """The backstop of :data:`SHUTDOWN_GRACE_S` that needs no GIL comes this much later (s).
 
-A teardown blocked in C code that holds the GIL (rclpy's ``destroy_node`` does not release
-it) starves the watchdog thread: seen in CI, ``ins_sensor`` silent for 30 s after a complete
-run, not one line in its log. Then :func:`faulthandler.dump_traceback_later` (a C thread)
+A teardown blocked in C code that holds the GIL starves the watchdog thread: seen in CI,
+``ins_sensor`` silent for 30 s after a complete run (its bag complete), not one line in its
+log, not even the watchdog's — consistent with a hang inside rclpy's node destruction with the
+GIL held (the likely cause, not verified in rclpy's source; the stacks this writes will tell). Then :func:`faulthandler.dump_traceback_later` (a C thread)
 writes the Python stacks to stderr; a node whose run had failed is ended by it, exit 1; a node
 whose run was complete is ended one second later by :data:`TEARDOWN_WATCHDOG_SIGNAL` with its
 default action (:func:`signal.alarm`, no GIL needed either), which the orchestrator reads as
