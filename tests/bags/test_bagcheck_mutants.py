@@ -612,13 +612,36 @@ def test_failures_and_verdict_text(small):
         "Lateral control performance z: -612.5 m at 20.200 s exceeds its bound 500 m by "
         "112.5 m",
         "no NaN/inf: /vega/ins pitch_rad not finite at 20.062 s"]
-    assert check.table().splitlines()[-1] == "verdict: FAIL: " + "; ".join(check.failures)
+    table = check.table().splitlines()
+    assert table[-1] == "verdict: FAIL: " + "; ".join(check.failures)
+    row = next(x for x in table if x.startswith("no NaN/inf "))
+    assert row.endswith("  NO    /vega/ins pitch_rad not finite at 20.062 s")
+    assert next(x for x in table if x.startswith("metadata ")).endswith(" yes")
     d = check.to_dict()
     assert d["passed"] is False and d["exit_code"] == 1 and d["failures"] == check.failures
     # only a health check failed: the requirements still pass
     check = bagcheck.check_run_bag(_edit(bag, INS, pitch_rad=pitch))
     assert check.requirements.passed and not check.passed and check.exit_code == 1
     assert check.failures == ["no NaN/inf: /vega/ins pitch_rad not finite at 20.062 s"]
+
+
+def test_title_without_run_metadata(small):
+    _, path, bag = small
+    check = bagcheck.check_run_bag(_meta(bag, META_SCENARIO=None, META_SEED=None,
+                                         META_GIT_REVISION=None))
+    assert check.table().splitlines()[0] == f"bag {path}: scenario ?, seed ?, git ?"
+
+
+def test_log_times_are_printed_rounded_to_the_millisecond(small):
+    """20 000 500 010 ns is 20.00050001 s: printed 20.001 s (a divisor off by one part in 1e9
+    would give 20.000)."""
+    _, _, bag = small
+    pitch = bag[INS]["pitch_rad"].copy()
+    pitch[0] = math.nan
+    log = bag[INS].log_time_ns.copy()
+    log[0] = 20_000_500_010
+    h = bagcheck._check_finite(_edit(bag, INS, log_time_ns=log, pitch_rad=pitch))
+    assert h.detail == "/vega/ins pitch_rad not finite at 20.001 s"
 
 
 def test_a_failed_informational_line_is_not_a_failure(small, tmp_path):
