@@ -211,7 +211,9 @@ class StopFlag:
         # a hung node's Python stacks on request (the orchestrator sends SIGUSR1 before it
         # stops a node that did not end): faulthandler writes them from its C handler, so
         # they come out even when the main thread is blocked in C holding the GIL
-        faulthandler.register(DUMP_STACKS_SIGNAL, all_threads=True)
+        stream = _fault_stream()
+        if stream is not None:
+            faulthandler.register(DUMP_STACKS_SIGNAL, file=stream, all_threads=True)
 
     def _on_signal(self, signum, _frame) -> None:
         self.signal_name = signal.Signals(signum).name
@@ -640,8 +642,9 @@ HARD_SHUTDOWN_MARGIN_S = 3.0
 A teardown blocked in C code that holds the GIL starves the watchdog thread: seen in CI,
 ``ins_sensor`` silent for 30 s after a complete run (its bag complete), not one line in its
 log, not even the watchdog's — consistent with a hang inside rclpy's node destruction with the
-GIL held (the likely cause, not verified in rclpy's source; the stacks this writes will tell). Then :func:`faulthandler.dump_traceback_later` (a C thread)
-writes the Python stacks to stderr; a node whose run had failed is ended by it, exit 1; a node
+GIL held (the likely cause, not verified in rclpy's source; the stacks this writes will
+tell). Then :func:`faulthandler.dump_traceback_later` (a C thread) writes the Python stacks to
+stderr; a node whose run had failed is ended by it, exit 1; a node
 whose run was complete is ended one second later by :data:`TEARDOWN_WATCHDOG_SIGNAL` with its
 default action (:func:`signal.alarm`, no GIL needed either), which the orchestrator reads as
 "finished, teardown hung" (status 0 with a warning): an exit status cannot be chosen without
@@ -650,6 +653,20 @@ the GIL."""
 TEARDOWN_WATCHDOG_SIGNAL = signal.SIGALRM
 """The signal that ends a node whose middleware teardown hung with the GIL held after a
 complete run (:data:`HARD_SHUTDOWN_MARGIN_S`)."""
+
+
+def _fault_stream():
+    """The stream :mod:`faulthandler` writes to: stderr if it is a real file (a node's log),
+    else the process's original stderr (in-process use with stderr captured), else None (no
+    stacks, no backstop: nothing to write them to)."""
+    for stream in (sys.stderr, sys.__stderr__):
+        try:
+            if stream is not None:
+                stream.fileno()
+                return stream
+        except (AttributeError, OSError, ValueError):
+            continue
+    return None
 
 
 def _close_with_watchdog(name: str, shell: Shell, code: int) -> None:
@@ -665,7 +682,9 @@ def _close_with_watchdog(name: str, shell: Shell, code: int) -> None:
     watchdog.daemon = True
     watchdog.start()
     hard_s = SHUTDOWN_GRACE_S + HARD_SHUTDOWN_MARGIN_S
-    faulthandler.dump_traceback_later(hard_s, exit=code != EXIT_OK)
+    stream = _fault_stream()
+    if stream is not None:
+        faulthandler.dump_traceback_later(hard_s, exit=code != EXIT_OK, file=stream)
     if code == EXIT_OK:
         signal.signal(TEARDOWN_WATCHDOG_SIGNAL, signal.SIG_DFL)
         signal.alarm(math.ceil(hard_s) + 1)
