@@ -218,13 +218,16 @@ def _diff(sources, key):
             if ln.startswith(("+", "-")) and not ln.startswith(("+++", "---"))]
 
 
-def run_module(name, target, max_children, commit, tree, collect=False, only=()):
+def run_module(name, target, max_children, commit, tree, collect=False, only=(), rerun=None):
     """Mutate one module, return its result record (also written to bench/results).
 
     ``collect``: do not run; read what an earlier (possibly interrupted) run of the module in
     build/mutation/<module>/ has recorded (mutants not yet run count as "not checked").
     ``only``: mutant-name globs (mutmut's own selection, e.g. ``vega_bags.bagio.x_git*``): run
     just those; the others count as "not checked" (a partial run, marked as such).
+    ``rerun``: the record of an earlier full run of the same source (:func:`_rerun_base`): only
+    its survivors are run again, every other mutant keeps its earlier status (killed stays
+    killed: tests were only added), and the counts are those of the whole module.
     """
     if collect:
         stage = WORK / name
@@ -269,6 +272,8 @@ def run_module(name, target, max_children, commit, tree, collect=False, only=())
                 record["status"] = "equivalent"
                 record["reason"] = eq["reason"]
         mutants.append(record)
+    if rerun is not None:
+        mutants = _merge_rerun(rerun, mutants)
     counts = {s: sum(m["status"] == s for m in mutants)
               for s in ("killed", "survived", "equivalent", "timeout", "no tests", "suspicious",
                         "not checked")}
@@ -276,7 +281,9 @@ def run_module(name, target, max_children, commit, tree, collect=False, only=())
               - counts["not checked"])
     result = {
         "module": name, "source": target["source"], "tests": tests, "missing_tests": missing,
-        "commit": commit + (" (partial: " + ", ".join(only) + ")" if only else ""),
+        "commit": commit + (f" (survivors of the full run at {rerun['commit']} re-run)"
+                            if rerun is not None else
+                            " (partial: " + ", ".join(only) + ")" if only else ""),
         "date": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
         "seconds": round(elapsed, 1), "max_children": max_children, "total": len(mutants),
         "counts": counts,
@@ -292,6 +299,44 @@ def run_module(name, target, max_children, commit, tree, collect=False, only=())
         with open(HISTORY, "a") as out:
             out.write(json.dumps(summary) + "\n")
     return result
+
+
+def _rerun_base(name, target, commit):
+    """The last recorded full run of ``name`` whose source file is the same as at ``commit``
+    (so that every mutant name means the same edit), with the names of its survivors.
+
+    Raises SystemExit (one line) if there is none.
+    """
+    path = RESULTS / f"{name}.json"
+    if not path.is_file():
+        raise SystemExit(f"mutation: {name}: no earlier run to re-run the survivors of")
+    base = json.loads(path.read_text())
+    old = base["commit"].split()[0]
+    if "(partial" in base["commit"] or base["counts"].get("not checked", 0):
+        raise SystemExit(f"mutation: {name}: the last run ({base['commit']}) is not a full "
+                         f"run; --rerun-survivors needs one")
+    same = subprocess.run(["git", "diff", "--quiet", old, commit.removesuffix("+worktree"),
+                           "--", target["source"]], cwd=ROOT, check=False).returncode == 0
+    if not same:
+        raise SystemExit(f"mutation: {name}: {target['source']} changed since {old}: run the "
+                         f"whole module")
+    base["survivors"] = [m["name"] for m in base["not_killed"] if m["status"] == "survived"]
+    base["commit"] = old
+    return base
+
+
+def _merge_rerun(base, rerun_mutants):
+    """Every mutant of ``base``'s full run, its survivors with their re-run statuses."""
+    again = {m["name"]: m for m in rerun_mutants if m["status"] != "not checked"}
+    out = [again.get(m["name"], m) if m["status"] == "survived" else m
+           for m in base["not_killed"]]
+    # the full run's killed mutants are not listed by name in its record: counted as such
+    out += [{"name": f"(killed in the full run, #{i})", "status": "killed"}
+            for i in range(base["counts"]["killed"])]
+    if len(out) != base["total"]:
+        raise SystemExit(f"mutation: {base['module']}: the re-run does not add up "
+                         f"({len(out)} of {base['total']} mutants)")
+    return out
 
 
 def write_table(order):
@@ -364,6 +409,10 @@ def main(argv=None):
     parser.add_argument("--only", action="append", default=[], metavar="GLOB",
                         help="run only the mutants whose names match (mutmut's glob; "
                              "repeatable): a partial run, the rest is 'not checked'")
+    parser.add_argument("--rerun-survivors", action="store_true",
+                        help="run again only the survivors of the module's last full run (same "
+                             "source file), keep every other mutant's status; the table shows "
+                             "the whole module")
     parser.add_argument("--collect", action="store_true",
                         help="do not run: tabulate what the last (possibly interrupted) run of "
                              "each module recorded in build/mutation/<module>/")
@@ -379,8 +428,13 @@ def main(argv=None):
         commit += "+worktree"
     failed = []
     for name in args.module or list(targets):
+        rerun = _rerun_base(name, targets[name], commit) if args.rerun_survivors else None
+        only = tuple(rerun["survivors"]) if rerun is not None else tuple(args.only)
+        if rerun is not None and not only:
+            print(f"mutation: {name}: no survivors to re-run")
+            continue
         result = run_module(name, targets[name], args.max_children, commit, tree,
-                            collect=args.collect, only=tuple(args.only))
+                            collect=args.collect, only=only, rerun=rerun)
         if result is None:
             failed.append(name)
             continue
