@@ -42,8 +42,9 @@ TRUTH, INS, CMD, ACT, DIAG, CLOCK = (t.name for t in (
 def _inputs_key():
     """SHA-256 of every file that goes into the fixture bag: the packages that fly the run and
     write the bag (their sources and config files, wherever they are imported from) and the
-    test fixtures. The cached bag is reused only while all of them are byte for byte the
-    same (the mutation run starts ≈ 1300 test processes on unchanged inputs)."""
+    test fixtures (source, configuration and data files; not mutmut's ``.meta`` records). The
+    cached bag is reused only while all of them are byte for byte the same (the mutation run
+    starts ≈ 1300 test processes on unchanged inputs)."""
     import hashlib
     import importlib
 
@@ -51,7 +52,8 @@ def _inputs_key():
     dirs = [Path(importlib.import_module(p).__file__).resolve().parent for p in (
         "vega_sim", "vega_model", "vega_gnc", "vega_bus", "vega_bags", "vega_core")]
     files = [f for d in dirs for f in sorted(d.rglob("*"))
-             if f.is_file() and "__pycache__" not in f.parts]
+             if f.suffix in (".py", ".yaml", ".yml", ".npz", ".npy", ".csv", ".json", ".txt")
+             and f.is_file() and "__pycache__" not in f.parts]
     files += [Path(__file__).resolve().parents[1] / n
               for n in ("fixture_bags.py", "fixture_tables.py")]
     for f in files:
