@@ -18,14 +18,11 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import shutil
-from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from fixture_bags import short_run, write_bag
+from cached_bags import cached_short_run
 from vega_bags import bagcheck, bagio
 from vega_bus import topics
 from vega_bus.schedule import RunInfo
@@ -39,54 +36,12 @@ TRUTH, INS, CMD, ACT, DIAG, CLOCK = (t.name for t in (
     topics.CLOCK))
 
 
-def _inputs_key():
-    """SHA-256 of every file that goes into the fixture bag: the packages that fly the run and
-    write the bag (their sources and config files, wherever they are imported from) and the
-    test fixtures (source, configuration and data files; not mutmut's ``.meta`` records). The
-    cached bag is reused only while all of them are byte for byte the same (the mutation run
-    starts ≈ 1300 test processes on unchanged inputs)."""
-    import hashlib
-    import importlib
-
-    h = hashlib.sha256()
-    dirs = [Path(importlib.import_module(p).__file__).resolve().parent for p in (
-        "vega_sim", "vega_model", "vega_gnc", "vega_bus", "vega_bags", "vega_core")]
-    files = [f for d in dirs for f in sorted(d.rglob("*"))
-             if f.suffix in (".py", ".yaml", ".yml", ".npz", ".npy", ".csv", ".json", ".txt")
-             and f.is_file() and "__pycache__" not in f.parts]
-    files += [Path(__file__).resolve().parents[1] / n
-              for n in ("fixture_bags.py", "fixture_tables.py")]
-    for f in files:
-        h.update(str(f.name).encode() + b"\0" + f.read_bytes() + b"\0")
-    return h.hexdigest()[:32]
-
-
 @pytest.fixture(scope="module")
 def small():
-    """(the in-process run's result, its bag directory, the loaded bag).
-
-    Flown once per set of inputs (:func:`_inputs_key`) and kept in the temporary directory,
-    written there under a fresh name and renamed into place, so that concurrent test
-    processes never see half a bag."""
-    import os
-    import pickle
-    import tempfile
-
-    cache = Path(tempfile.gettempdir()) / "vega-test-bagcheck" / _inputs_key()
-    if not (cache / "result.pickle").is_file():
-        cache.parent.mkdir(parents=True, exist_ok=True)
-        work = Path(tempfile.mkdtemp(prefix="new-", dir=cache.parent))
-        (work / "run").mkdir()
-        run = short_run(work / "run", span_s=(20.0, 20.5))
-        write_bag(work / "bag", run)
-        (work / "result.pickle").write_bytes(pickle.dumps(run.result))
-        try:
-            os.rename(work, cache)
-        except OSError:       # another process was first: use its bag
-            shutil.rmtree(work, ignore_errors=True)
-    result = pickle.loads((cache / "result.pickle").read_bytes())
-    path = cache / "bag"
-    return SimpleNamespace(result=result), path, bagio.read_run_bag(path)
+    """(the in-process run, its bag directory, the loaded bag); flown once per set of inputs
+    (tests/bags/cached_bags.py)."""
+    run, path = cached_short_run((20.0, 20.5))
+    return run, path, bagio.read_run_bag(path)
 
 
 def _edit(bag, topic, log_time_ns=None, **columns):

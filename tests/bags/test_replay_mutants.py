@@ -125,11 +125,10 @@ def test_run_info_without_a_scenario_is_a_bag_error(tmp_path):
 
 # ------------------------------------------- check_controller with the ROS plumbing replaced
 @pytest.fixture(scope="module")
-def short_bag(tmp_path_factory):
-    from fixture_bags import short_run, write_bag
+def short_bag():
+    from cached_bags import cached_short_run   # flown once per set of inputs (read-only)
 
-    run = short_run(tmp_path_factory.mktemp("run"), span_s=(20.0, 20.5))
-    return write_bag(tmp_path_factory.mktemp("bag") / "bag", run)
+    return cached_short_run((20.0, 20.5))[1]
 
 
 class _Capture:

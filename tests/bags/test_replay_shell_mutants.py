@@ -31,17 +31,20 @@ GUIDE = ROOT / "ros2_ws" / "src" / "vega_gnc" / "config" / "guidance_reference.n
 
 
 @pytest.fixture(scope="module")
-def run(tmp_path_factory):
-    from fixture_bags import short_run
+def run_and_bag():
+    from cached_bags import cached_short_run
 
-    return short_run(tmp_path_factory.mktemp("run"), span_s=(20.0, 20.3))
+    return cached_short_run((20.0, 20.3))
 
 
 @pytest.fixture(scope="module")
-def bag(run, tmp_path_factory):
-    from fixture_bags import write_bag
+def run(run_and_bag):
+    return run_and_bag[0]
 
-    return write_bag(tmp_path_factory.mktemp("bag") / "bag", run)
+
+@pytest.fixture(scope="module")
+def bag(run_and_bag):
+    return run_and_bag[1]
 
 
 class _Shell:
