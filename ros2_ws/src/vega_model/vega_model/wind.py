@@ -316,6 +316,83 @@ class DrydenTurbulence:
         self._eta, self._next = eta, i
         return out
 
+    def coefficients_many(self, h_m, airspeed_mps) -> tuple[list[float], list[float],
+                                                            list[float]]:
+        """:meth:`coefficients` at each of the altitudes ``h_m`` [m] with the airspeeds
+        ``airspeed_mps`` [m/s]: lists (σ_w, a, √(1 − a²)), the same numbers (the table's
+        interpolation element by element on arrays, ``math.exp`` per entry).
+
+        Raises
+        ------
+        ValueError
+            If an altitude or an airspeed is not finite.
+        """
+        h = np.asarray(h_m, dtype=float)
+        v = np.asarray(airspeed_mps, dtype=float)
+        if not (np.isfinite(h).all() and np.isfinite(v).all()):
+            bad = ~(np.isfinite(h) & np.isfinite(v))
+            k = int(np.argmax(bad))
+            raise ValueError(f"non-finite altitude {float(h[k])!r} or airspeed "
+                             f"{float(v[k])!r}")
+        table = self._table
+        alt = np.array(table.alt)
+        sig_tab, len_tab = np.array(table.sigma), np.array(table.length)
+        i = np.searchsorted(alt, h, side="right")          # bisect_right
+        sigma, ell = np.empty_like(h), np.empty_like(h)
+        low, high = i == 0, i == len(alt)
+        sigma[low], ell[low] = sig_tab[0], len_tab[0]
+        sigma[high], ell[high] = sig_tab[-1], len_tab[-1]
+        mid = ~(low | high)
+        j = i[mid]
+        w = (h[mid] - alt[j - 1]) / (alt[j] - alt[j - 1])
+        sigma[mid] = sig_tab[j - 1] + w * (sig_tab[j] - sig_tab[j - 1])
+        ell[mid] = len_tab[j - 1] + w * (len_tab[j] - len_tab[j - 1])
+        sigma[h > table.h_cut] = 0.0
+        exp = math.exp
+        a = [exp(x) for x in (-np.abs(v) * self.dt_s / ell).tolist()]
+        b = np.sqrt(1.0 - np.square(a)).tolist()
+        return sigma.tolist(), a, b
+
+    def entry_steps(self, coefficients: tuple[list[float], list[float], list[float]],
+                    steps_per_entry: int) -> list[float]:
+        """:meth:`steps` of ``steps_per_entry`` steps with each entry's coefficients in turn
+        (``coefficients``: lists σ_w, a, √(1 − a²) as :meth:`coefficients_many` returns
+        them), concatenated: the numbers of those calls of :meth:`steps`."""
+        eta, noise, i = self._eta, self._noise, self._next
+        out = []
+        append = out.append
+        for sigma, a, b in zip(*coefficients):
+            for _ in range(steps_per_entry):
+                if i == len(noise):
+                    noise = self._noise = self._rng.standard_normal(_NOISE_BLOCK).tolist()
+                    i = 0
+                eta = a * eta + b * noise[i]
+                i += 1
+                append(sigma * eta)
+        self._eta, self._next = eta, i
+        return out
+
+    def entry_steps_array(self, coefficients, steps_per_entry: int) -> np.ndarray:
+        """:meth:`entry_steps` as an array, the recursion compiled
+        (:func:`vega_model.wind_kernel.dryden_entries`): the same numbers, and the generator
+        left where :meth:`entry_steps` leaves it."""
+        from vega_model.wind_kernel import dryden_entries
+
+        sigma, a, b = (np.asarray(c, dtype=float) for c in coefficients)
+        n = sigma.size * int(steps_per_entry)
+        parts = [np.array(self._noise[self._next:], dtype=float)]
+        have = parts[0].size
+        while have < n:                      # the blocks entry_steps would draw, in order
+            parts.append(self._rng.standard_normal(_NOISE_BLOCK))
+            have += _NOISE_BLOCK
+        if len(parts) > 1:
+            self._noise, self._next = parts[-1].tolist(), _NOISE_BLOCK - (have - n)
+        else:
+            self._next += n
+        out, self._eta = dryden_entries(np.concatenate(parts)[:n], self._eta, sigma, a, b,
+                                        int(steps_per_entry))
+        return out
+
 
 @dataclass(frozen=True)
 class GustProfile:
@@ -446,3 +523,38 @@ class WindModel:
         if gust is None:
             return [prof + w + 0.0 for w in turb]
         return [prof + w + gust.velocity_mps(t) for t, w in zip(times_s, turb)]
+
+    def entry_steps(self, t0_ms: int, dt_ms: int, steps_per_entry: int, h_m,
+                    airspeed_mps) -> list[float]:
+        """:meth:`steps` over consecutive parameter entries, concatenated: entry ``e`` holds
+        altitude ``h_m[e]`` [m] and airspeed ``airspeed_mps[e]`` [m/s] over the steps
+        ``e·steps_per_entry`` … ``(e + 1)·steps_per_entry − 1``, step ``j`` at the time
+        (t0_ms + j·dt_ms) / 1000 [s]. The numbers of one :meth:`steps` call per entry in
+        order (the per-entry values on arrays where the operations are exact, ``math``'s
+        functions where they are not).
+
+        Raises
+        ------
+        ValueError
+            On a non-finite altitude or airspeed.
+        """
+        turb = self.turbulence
+        n_e = len(h_m)
+        values = turb.entry_steps_array(turb.coefficients_many(h_m, airspeed_mps),
+                                        int(steps_per_entry))
+        if self.profile:
+            scale, shift, const = self.change.scale, self.change.shift_m, self._profile_const
+            shifted = (np.asarray(h_m, dtype=float) - shift).tolist()
+            prof = np.array([scale * _profile_scalar(h, *const) for h in shifted])
+        else:
+            prof = np.zeros(n_e)
+        values = np.repeat(prof, steps_per_entry) + values
+        gust = self.gust
+        if gust is None:
+            return (values + 0.0).tolist()
+        times = (int(t0_ms) + int(dt_ms) * np.arange(values.size, dtype=np.int64)) / 1000.0
+        tau = times - gust.t_start_s
+        inside = np.flatnonzero((tau >= 0.0) & (tau <= gust.duration_s))
+        gusts = np.zeros(values.size)
+        gusts[inside] = [gust.velocity_mps(t) for t in times[inside].tolist()]
+        return (values + gusts).tolist()

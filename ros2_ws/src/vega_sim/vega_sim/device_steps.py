@@ -38,6 +38,14 @@ from vega_model.parameters import ModelParameters
 __all__ = ["ActuatorOut", "InsStep", "ActuatorStep"]
 
 
+def _all_finite(values, extra: float) -> bool:
+    """``all(math.isfinite(x) for x in (*values, extra))``, with a fast path: a finite sum
+    of the values proves them all finite; otherwise each is checked."""
+    if math.isfinite(sum(values, extra)):
+        return True
+    return all(math.isfinite(x) for x in values) and math.isfinite(extra)
+
+
 class InsStep:
     """INS sensor node: one measurement per frame.
 
@@ -71,11 +79,14 @@ class InsStep:
             Model parameters at the sample time (INS lever arm and mode shapes).
         """
         state = truth.state
-        if all(math.isfinite(x) for x in state) and math.isfinite(truth.velocity_mps):
-            s = self._sensor.measure(state, model_params, truth.velocity_mps)
+        v = truth.velocity_mps
+        # all finite: a finite sum proves it (a NaN or ±inf anywhere makes the sum non-finite);
+        # a non-finite sum (or an overflow) is checked value by value
+        if _all_finite(state, v):
+            s = self._sensor.measure(state, model_params, v)
         else:                                        # a diverged truth: no measurement
             s = InsSample(*(math.nan,) * 5)
-        valid = all(math.isfinite(x) for x in s)     # never a non-finite sample marked valid
+        valid = _all_finite(s, 0.0)                  # never a non-finite sample marked valid
         out = InsOut(truth.stamp_ms + self._latency_ms, truth.stamp_ms, self._seq,
                      s.theta_rad, s.theta_dot_radps, s.z_m, s.z_dot_mps, s.velocity_mps, valid)
         self._seq += 1
@@ -133,13 +144,16 @@ class ActuatorStep:
         """
         if t_ms != self._t_ms:
             raise ValueError(f"actuator frame at {t_ms} ms, expected {self._t_ms} ms")
-        pending, dt = self._pending, self._dt_ms
+        pending, dt, steps = self._pending, self._dt_ms, self._steps
         command = self._command
-        commands = []
-        for k in range(self._steps):
-            while pending and pending[0][0] <= t_ms + k * dt:
-                command = pending.pop(0)[2]
-            commands.append(command)
+        if pending and pending[0][0] <= t_ms + (steps - 1) * dt:   # a command applies
+            commands = []
+            for k in range(steps):
+                while pending and pending[0][0] <= t_ms + k * dt:
+                    command = pending.pop(0)[2]
+                commands.append(command)
+        else:                                                       # the held one only
+            commands = [command] * steps
         self._command = command
         # (β, β̇, β̈) and the finite command in force (a NaN/inf command holds the last)
         beta, rate, accel, held = (tuple(v) for v in self._act.run(commands))

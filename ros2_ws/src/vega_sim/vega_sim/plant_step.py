@@ -158,9 +158,10 @@ class ParameterTrack:
         n = (t_end_ms - t_start_ms + frame_ms) // refresh_ms
         # parameters_at(context, t_start + refresh·e, deviations) for every e, on arrays
         # (ModelContext.parameters_at_times: the same numbers)
+        self._columns: dict[str, np.ndarray] = {}
         self.params: tuple[ModelParameters, ...] = tuple(context.parameters_at_times(
             (t_start_ms + refresh_ms * np.arange(n, dtype=np.int64)) / 1000.0,
-            self.deviations))
+            self.deviations, columns=self._columns))
         self._linear: LinearFrames | None = None
         self._nonlinear: list[NonlinearModel | None] = [None] * n
         self._kernel: tuple | None = None
@@ -184,7 +185,10 @@ class ParameterTrack:
         if self._kernel is None:
             from vega_model.nonlinear_kernel import entry_constants, mach_tables
 
-            consts = np.array([entry_constants(p) for p in self.params], dtype=float)
+            if self._columns:
+                consts = _entry_constants_of_columns(self._columns, self.params[0])
+            else:
+                consts = np.array([entry_constants(p) for p in self.params], dtype=float)
             consts.setflags(write=False)
             self._kernel = (consts, mach_tables(self.params[0]))
         return self._kernel
@@ -238,6 +242,27 @@ class ParameterTrack:
         for arr in (H, q_alpha_x, q_alpha_wind):
             arr.setflags(write=False)
         return LinearFrames(H, q_alpha_x, q_alpha_wind)
+
+
+def _entry_constants_of_columns(columns: Mapping[str, np.ndarray],
+                                first: ModelParameters) -> np.ndarray:
+    """:func:`vega_model.nonlinear_kernel.entry_constants` of every entry, as rows, from the
+    track's columns (:meth:`ModelContext.parameters_at_times`; ``first``: an entry, for the
+    fields that do not vary): the same operations on arrays, element by element, so the same
+    numbers (tests/sim/test_closed_loop.py compares them with ``entry_constants``)."""
+    c = columns
+    T, m, J = c["thrust_n"], c["mass_kg"], c["jyy_kgm2"]
+    lc, d = c["x_cg_m"] - first.x_pvp_m, c["x_cp_m"] - c["x_cg_m"]
+    mn, ln, jn = first.nozzle_mass_kg, first.nozzle_lever_m, first.nozzle_inertia_kgm2
+    rp0, rp1 = c["psi_r_pvp_0"], c["psi_r_pvp_1"]
+    w1, w2 = 2.0 * math.pi * c["f1_hz"], 2.0 * math.pi * c["f2_hz"]
+    zeta = first.zeta
+    n = T.size
+    return np.column_stack((
+        c["v_mps"], c["sound_speed_mps"], np.full(n, first.s_ref_m2), 0.5 * c["rho_kgpm3"],
+        d, T, m, J, lc, c["psi_t_pvp_0"], c["psi_t_pvp_1"], rp0, rp1, np.full(n, -mn * ln),
+        -T, lc * T, np.full(n, jn), jn * rp0, jn * rp1, -w1 * w1, 2.0 * zeta * w1, -w2 * w2,
+        2.0 * zeta * w2, np.full(n, first.aero.crossflow_coefficient)))
 
 
 @lru_cache(maxsize=4)
@@ -339,21 +364,31 @@ class PlantWind:
             a, g = thesis_dryden_coefficients(h, v, data, turbulence, dt_ms / 1000.0)
             self._a, self._g = a.tolist(), g.tolist()
         self._state = 0.0
+        self._sequence: list[float] | None = None
+
+    def _whole_track(self) -> list[float]:
+        """v_w at every physics step of the track, from its start: one
+        :meth:`WindModel.steps` per parameter entry in order (its altitude and airspeed), as
+        :meth:`WindModel.entry_steps` computes them at once."""
+        if self._sequence is None:
+            track = self._track
+            params = track.params
+            self._sequence = self._model.entry_steps(
+                track.t_start_ms, self._dt_ms, track.refresh_ms // self._dt_ms,
+                [p.h_m for p in params], [p.v_mps for p in params])
+        return self._sequence
 
     def frame(self, t_ms: int, n_steps: int) -> list[float]:
-        """Advance ``n_steps`` physics steps from ``t_ms``; return v_w held over each [m/s]."""
+        """Advance ``n_steps`` physics steps from ``t_ms``; return v_w held over each [m/s].
+
+        Frames follow each other from the track's start (:class:`PlantStep`); the sequence
+        of the whole track is drawn at the first call (the wind does not depend on the plant
+        state), the same numbers as drawing it frame by frame."""
         track = self._track
-        params, t0, refresh, dt = track.params, track.t_start_ms, track.refresh_ms, self._dt_ms
-        out = []
-        if self._active:          # WindModel.steps over each run of steps with one entry
-            k = 0
-            while k < n_steps:
-                e = (t_ms + k * dt - t0) // refresh
-                j = min(n_steps, (t0 + (e + 1) * refresh - t_ms + dt - 1) // dt)
-                p = params[e]
-                out += self._model.steps([(t_ms + i * dt) / 1000.0 for i in range(k, j)],
-                                         p.h_m, p.v_mps)
-                k = j
+        t0, refresh, dt = track.t_start_ms, track.refresh_ms, self._dt_ms
+        if self._active:
+            j = (t_ms - t0) // dt
+            out = self._whole_track()[j:j + n_steps]
         else:
             out = [0.0] * n_steps
         if not self._thesis:
