@@ -216,6 +216,12 @@ class TvcActuator:
         """:meth:`step` once per command of ``commands``; return the lists of β, β̇, β̈ at
         the step ends and of the command held over each step (:attr:`command_rad` after it).
         The same arithmetic as :meth:`step`, in one loop (the actuator node's frame)."""
+        betas, rates, accels, helds = self.run_tuples(commands)
+        return list(betas), list(rates), list(accels), list(helds)
+
+    def run_tuples(self, commands) -> tuple[tuple[float, ...], tuple[float, ...],
+                                            tuple[float, ...], tuple[float, ...]]:
+        """:meth:`run` with tuples in place of the lists (the actuator node's frame)."""
         p11, p12, p21, p22, g1, g2 = (self._p11, self._p12, self._p21, self._p22,
                                       self._g1, self._g2)
         rate, pos, half_dt, max_step = self._rate, self._pos, self._half_dt, self._max_step
@@ -223,13 +229,17 @@ class TvcActuator:
         isfinite = math.isfinite
         b0, r0, a, held = self.beta_rad, self.beta_dot_radps, self.beta_ddot_radps2, \
             self.command_rad
-        betas, rates, accels, helds = [], [], [], []
-        for cmd in commands:
-            u = float(cmd)
-            if isfinite(u):
-                held = u
-            else:
-                u = held
+        rows = []
+        append = rows.append
+        last = rows                          # no command yet (a held command repeats as the
+        for cmd in commands:                 # same object: converted and checked once)
+            if cmd is not last:
+                last = cmd
+                u = float(cmd)
+                if isfinite(u):
+                    held = u
+                else:
+                    u = held
             b = p11 * b0 + p12 * r0 + g1 * u
             r = p21 * b0 + p22 * r0 + g2 * u
             if r > rate:
@@ -251,13 +261,13 @@ class TvcActuator:
             a = w2 * (u - b) - c * r
             if (a > 0.0 and (r >= rate or b >= pos)) or (a < 0.0 and (r <= -rate or b <= -pos)):
                 a = 0.0
-            betas.append(b)
-            rates.append(r)
-            accels.append(a)
-            helds.append(held)
+            append((b, r, a, held))
             b0, r0 = b, r
         self.beta_rad, self.beta_dot_radps, self.beta_ddot_radps2 = b0, r0, a
         self.command_rad = held
+        if not rows:
+            return (), (), (), ()
+        betas, rates, accels, helds = zip(*rows)
         return betas, rates, accels, helds
 
     def advance(self, beta_cmd_rad, n_steps: int):

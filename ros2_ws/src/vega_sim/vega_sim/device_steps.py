@@ -156,7 +156,7 @@ class ActuatorStep:
             commands = [command] * steps
         self._command = command
         # (β, β̇, β̈) and the finite command in force (a NaN/inf command holds the last)
-        beta, rate, accel, held = (tuple(v) for v in self._act.run(commands))
+        beta, rate, accel, held = self._act.run_tuples(commands)
         self._t_ms = t_ms + self._steps * dt
         out = ActuatorOut(self._t_ms, self._seq, beta, rate, accel, held, dt / 1000.0)
         self._seq += 1

@@ -365,6 +365,7 @@ class PlantWind:
             self._a, self._g = a.tolist(), g.tolist()
         self._state = 0.0
         self._sequence: list[float] | None = None
+        self._array: np.ndarray | None = None
 
     def _whole_track(self) -> list[float]:
         """v_w at every physics step of the track, from its start: one
@@ -376,7 +377,17 @@ class PlantWind:
             self._sequence = self._model.entry_steps(
                 track.t_start_ms, self._dt_ms, track.refresh_ms // self._dt_ms,
                 [p.h_m for p in params], [p.v_mps for p in params])
+            self._array = np.array(self._sequence)
         return self._sequence
+
+    def frame_and_array(self, t_ms: int, n_steps: int) -> tuple[list[float], np.ndarray]:
+        """:meth:`frame` and the same numbers as a float array (not to be written)."""
+        if self._active and not self._thesis:
+            j = (t_ms - self._track.t_start_ms) // self._dt_ms
+            out = self._whole_track()[j:j + n_steps]
+            return out, self._array[j:j + n_steps]
+        out = self.frame(t_ms, n_steps)
+        return out, np.array(out, dtype=float)
 
     def frame(self, t_ms: int, n_steps: int) -> list[float]:
         """Advance ``n_steps`` physics steps from ``t_ms``; return v_w held over each [m/s].
@@ -451,9 +462,8 @@ class PlantStep:
             from vega_model.nonlinear_kernel import rk4_frame
 
             consts, tables = track.kernel_inputs()
-            self._rk4_frame, self._kernel_consts, self._kernel_tables = (
-                rk4_frame, (consts,), tuple(tables))
-        self._winds = self._draw_winds()
+            self._rk4_frame, self._kernel_args = rk4_frame, (consts, *tables)
+        self._winds, self._wind_array = self._draw_winds()
         self._out = self._truth()
 
     @property
@@ -465,8 +475,8 @@ class PlantStep:
         """Truth at the current frame time."""
         return self._out
 
-    def _draw_winds(self) -> list[float]:
-        return self._wind.frame(self._t_ms, self._steps)
+    def _draw_winds(self) -> tuple[list[float], np.ndarray]:
+        return self._wind.frame_and_array(self._t_ms, self._steps)
 
     def advance(self, deflection_samples_rad: Sequence[float],
                 rate_samples_radps: Sequence[float]) -> TruthOut:
@@ -506,20 +516,17 @@ class PlantStep:
             self._x = self._linear.H[f] @ np.array(xu)
         else:
             track = self.track
-            x = self._x.copy()
             b0 = float(deflection_samples_rad[-1])
             r0 = float(rate_samples_radps[-1])
-            self._rk4_frame(x, *self._kernel_consts, *self._kernel_tables,
-                            np.asarray(deflection_samples_rad, dtype=float),
-                            np.asarray(rate_samples_radps, dtype=float),
-                            np.asarray(winds, dtype=float), self._beta, self._rate, inv_dt,
-                            self._dt_s, self._t_ms, track.t_start_ms, track.refresh_ms,
-                            track.dt_ms)
-            self._x = x
+            samples = np.array((deflection_samples_rad, rate_samples_radps), dtype=float)
+            # the state is integrated in place (PlantStep's own array, never handed out)
+            self._rk4_frame(self._x, *self._kernel_args, samples[0], samples[1],
+                            self._wind_array, self._beta, self._rate, inv_dt, self._dt_s,
+                            self._t_ms, track.t_start_ms, track.refresh_ms, track.dt_ms)
         self._beta, self._rate = b0, r0
         self._t_ms += self.track.frame_ms
         self._seq += 1
-        self._winds = self._draw_winds()
+        self._winds, self._wind_array = self._draw_winds()
         self._out = self._truth()
         return self._out
 
