@@ -121,6 +121,7 @@ def test_run_context_names_every_missing_key(small):
     run, _, bag = small
     ctx = bagcheck.run_context(_meta(bag, META_SEED=None, META_GIT_REVISION=None))
     assert ctx.problems == ("missing vega.seed", "missing vega.git_revision")
+    assert bagcheck._check_metadata(ctx).detail == "missing vega.seed; missing vega.git_revision"
     assert ctx.info.seed == run.result.scenario.seed and ctx.scenario is not None
 
 
@@ -324,6 +325,15 @@ def test_finite_tie_keeps_the_first_topic(small):
                                                  f"{t_ms / 1e3:.3f} s"
 
 
+def test_finite_in_a_topic_of_one_message(small):
+    _, _, bag = small
+    one = _take(bag, DIAG, 1)
+    one = _edit(one, DIAG, compute_time_s=np.array([math.nan]))
+    h = bagcheck._check_finite(one)
+    assert (h.value, h.detail) == ("1", "/vega/diagnostics compute_time_s not finite at "
+                                        "20.024 s")
+
+
 def test_finite_ignores_integer_and_empty_columns(small):
     _, _, bag = small
     seq = bag[TRUTH]["seq"]
@@ -356,6 +366,9 @@ def test_sequence_problems_by_hand(small):
     h = bagcheck._check_sequence(both)
     assert (h.value, h.passed) == ("2 topic(s)", False)
     assert h.detail == "/vega/ins starts at seq 1; /vega/diagnostics missing"
+    # a missing topic does not end the check of the topics after it
+    h = bagcheck._check_sequence(_edit(_without(bag, INS), CMD, seq=cmd))
+    assert h.detail == "/vega/ins missing; /vega/tvc_cmd seq 9 → 11 (gap) at 20.224 s; 1 in all"
     # a topic with no messages has nothing to check, and the others still are
     h = bagcheck._check_sequence(_edit(_take(bag, INS, 0), CMD, seq=cmd))
     assert h.detail == "/vega/tvc_cmd seq 9 → 11 (gap) at 20.224 s; 1 in all"
@@ -415,6 +428,32 @@ def test_lockstep_problems_by_hand(small):
     assert h.value == "2 problem(s)" and h.detail == (
         "/vega/ins log time 20.053 s ≠ stamp 20.052 s; "
         "/vega/ins stamp − sample_stamp = 13 ms at 20.042 s (expected 12 ms)")
+
+
+def test_lockstep_edge_cases(small):
+    _, _, bag = small
+    # one nanosecond forward is an advance, not a stall
+    st = bag[TRUTH]["stamp_ns"].copy()
+    st[30] = st[29] + 1
+    h = bagcheck._check_lockstep(_edit(bag, TRUTH, log_time_ns=st, stamp_ns=st), TIMING)
+    assert h.detail.startswith("/vega/truth stamp advanced 1e-06 ms at 20.290 s")
+    # a latency printed to 6 significant digits in ms (999 999 ns)
+    sa = bag[INS]["sample_stamp_ns"].copy()
+    sa[3] = bag[INS]["stamp_ns"][3] - 999_999
+    h = bagcheck._check_lockstep(_edit(bag, INS, sample_stamp_ns=sa), TIMING)
+    assert h.detail == "/vega/ins stamp − sample_stamp = 0.999999 ms at 20.042 s " \
+                       "(expected 12 ms)"
+    # a topic of one message is checked (its log time), an empty one does not end the check
+    log = bag[DIAG].log_time_ns[:1] + MS
+    one = _edit(_take(bag, DIAG, 1), DIAG, log_time_ns=log)
+    h = bagcheck._check_lockstep(one, TIMING)
+    assert h.detail == "/vega/diagnostics log time 20.025 s ≠ stamp 20.024 s"
+    st = bag[ACT]["stamp_ns"].copy()
+    st[7:] += 2 * MS
+    h = bagcheck._check_lockstep(_edit(_take(bag, INS, 0), ACT, log_time_ns=st, stamp_ns=st),
+                                 TIMING)
+    assert h.detail.startswith("/vega/actuator stamp advanced 12 ms at 20.070 s")
+    assert list(bag.topics).index(INS) < list(bag.topics).index(ACT)
 
 
 def test_lockstep_other_timing_and_clock(small):
@@ -752,6 +791,21 @@ def test_to_dict_layout_and_numbers(small, tmp_path):
     assert json.loads(text) == json.loads(json.dumps(d))
     out = check.write_json(str(tmp_path / "w.json"))
     assert out.read_text(encoding="utf-8") == text
+
+
+def test_json_file_is_utf8_whatever_the_locale(small, tmp_path):
+    """Under the C locale (ASCII) the file is still UTF-8 ("≤" in the limits)."""
+    import locale
+
+    _, _, bag = small
+    check = bagcheck.check_run_bag(bag)
+    old = locale.setlocale(locale.LC_CTYPE)
+    try:
+        locale.setlocale(locale.LC_CTYPE, "C")
+        out = check.write_json(tmp_path / "c.json")
+    finally:
+        locale.setlocale(locale.LC_CTYPE, old)
+    assert "≤ 12 ms".encode() in out.read_bytes()
 
 
 def test_to_dict_without_a_sensitivity_line(small):
