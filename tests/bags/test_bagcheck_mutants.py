@@ -514,6 +514,16 @@ def test_coverage_problems_by_hand(small):
     assert h.detail.endswith("; /vega/diagnostics: 0 messages, a complete run has 25")
 
 
+def test_coverage_goes_on_after_an_empty_topic(small):
+    _, _, bag = small
+    ctx = bagcheck.run_context(bag)
+    st = bag[CMD]["stamp_ns"].copy()
+    st[-1] += MS
+    h = bagcheck._check_coverage(_edit(_take(bag, INS, 0), CMD, stamp_ns=st), ctx)
+    assert h.detail == ("/vega/ins: 0 messages, a complete run has 50; /vega/tvc_cmd spans "
+                        "20.024 s … 20.505 s, expected 20.024 s … 20.504 s")
+
+
 def test_coverage_of_the_clock(small):
     _, _, bag = small
     ctx = bagcheck.run_context(bag)
@@ -585,6 +595,19 @@ def test_compute_time_percentiles_by_hand():
     h = bagcheck._check_compute_time(np.full(10, 0.025), np.zeros(10, np.int64), slow)
     assert h.passed and h.limit == "≤ 30 ms for ≥ 99 %"
     assert h.margin == pytest.approx(0.005, rel=1e-12, abs=0)
+
+
+def test_compute_time_rounding_by_hand():
+    """1000.4996 µs prints as 1000 µs (×1.000001 would give 1001); an overrun of 12.449 ms
+    as 12.4 ms (×1.001 would give 12.5)."""
+    ct = np.full(10, 1000.4996e-6)
+    h = bagcheck._check_compute_time(ct, np.zeros(10, np.int64), TIMING)
+    assert h.detail == "median 1000 µs, p99 1000 µs, max 1000 µs"
+    ct = np.full(200, 1e-4)
+    ct[0] = 0.012449
+    h = bagcheck._check_compute_time(ct, np.full(200, 20_024, np.int64), TIMING)
+    assert h.detail.startswith("1 of 200 command(s) over budget (allowed 2), first at "
+                               "20.024 s (12.4 ms); ")
 
 
 def test_compute_time_missing_or_not_finite():
