@@ -159,6 +159,9 @@ def test_actuator_sample_instants_by_hand():
     got = bagcheck._actuator_times_ms(_act([50, 60, 70], [1, 4, 2], [0.005, 0.002, 0.010]))
     assert got.tolist() == [50, 54, 56, 58, 60, 60, 70]
     assert bagcheck._actuator_times_ms(_act([], [], [])).tolist() == []
+    # the period is rounded to whole ms from seconds: 0.75 s is 750 ms
+    got = bagcheck._actuator_times_ms(_act([3000], [3], [0.75]))
+    assert got.tolist() == [1500, 2250, 3000]
 
 
 def _cmd(stamps_ms, values):
@@ -522,6 +525,15 @@ def test_coverage_goes_on_after_an_empty_topic(small):
     h = bagcheck._check_coverage(_edit(_take(bag, INS, 0), CMD, stamp_ns=st), ctx)
     assert h.detail == ("/vega/ins: 0 messages, a complete run has 50; /vega/tvc_cmd spans "
                         "20.024 s … 20.505 s, expected 20.024 s … 20.504 s")
+
+
+def test_coverage_value_is_the_truth_span_in_ms(small):
+    """Truth stamps 20 000 500 010 and 20 500 500 010 ns print as 20.001 … 20.501 s."""
+    _, _, bag = small
+    st = bag[TRUTH]["stamp_ns"].copy()
+    st[0], st[-1] = 20_000_500_010, 20_500_500_010
+    h = bagcheck._check_coverage(_edit(bag, TRUTH, stamp_ns=st), bagcheck.run_context(bag))
+    assert h.value == "20.001 … 20.501 s"
 
 
 def test_coverage_of_the_clock(small):
