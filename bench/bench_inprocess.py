@@ -7,7 +7,8 @@ One run measures, in this order (issue 12 item 5):
 
 1. **Old vs new, as ratios.** The old code is a git worktree of ``--old`` (default: the parent
    of the commit that added ``vega_model/nonlinear_kernel.py``, i.e. the code before the
-   speed-up), put first on PYTHONPATH; the new code is this checkout. Each side runs in its own
+   first speed-up; ``--old 2a9975c`` is the code before the second, docs/MONTE_CARLO.md §8),
+   put first on PYTHONPATH; the new code is this checkout. Each side runs in its own
    fresh process, the two alternating ``--repeat`` times (default 2), so that the machine's
    load hits both alike. Per side:
 
@@ -154,6 +155,9 @@ def _compare(old_rev: str, repeat: int, samples: int) -> None:
     line("nominal 100 s warm, x real time / wall s", "warm_wall_s", True)
     line("MC flight (fly_sample), x RT / CPU s", "flight_cpu_s", True)
     line("MC flight (fly_sample), x RT / wall s", "flight_wall_s", True)
+    o, n = best["old"]["flight_cpu_s"], best["new"]["flight_cpu_s"]
+    print(f"{'MC flight (fly_sample), CPU s':38s} {o:8.3f}s {n:8.3f}s  "
+          f"({100.0 * (1.0 - n / o):.1f} % less CPU)")
     o, n = best["old"], best["new"]
     print(f"{'plant node start-up, CPU s':38s} {o['startup_cpu_s']:8.3f}s "
           f"{n['startup_cpu_s']:8.3f}s  (+{n['startup_cpu_s'] - o['startup_cpu_s']:.3f} s)")

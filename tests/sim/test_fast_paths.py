@@ -124,3 +124,32 @@ def test_a_run_leaves_the_garbage_collector_as_it_was(enabled):
         assert gc.isenabled() is enabled
     finally:
         (gc.enable if was else gc.disable)()
+
+
+@pytest.mark.parametrize("deviations", [{}, DEVIATIONS])
+def test_lazy_parameter_sets_equal_the_bulk_build(deviations):
+    ctx = default_context()
+    track = ParameterTrack(ctx, 40000, 45000, refresh_ms=5, deviations=deviations)
+    times = (40000 + 5 * np.arange(len(track.params))) / 1000.0
+    bulk = ctx.parameters_at_times(times, deviations)
+    assert len(track.params) == len(bulk) == 1002
+    order = [1001, 0, 500, -1, -1002] + list(range(len(bulk)))   # first access anywhere
+    for e in order:
+        assert track.params[e] == bulk[e] and repr(track.params[e]) == repr(bulk[e])
+    assert track.params[-1] is track.params[1001]                   # built once, kept
+    assert track.params[3:6] == bulk[3:6] and list(track.params) == bulk
+    with pytest.raises(IndexError):
+        track.params[1002]
+
+
+@pytest.mark.parametrize("deviations", [{}, DEVIATIONS])
+def test_parameter_views_are_the_parameter_sets_fields(deviations):
+    track = ParameterTrack(default_context(), 60000, 62000, deviations=deviations)
+    assert len(track.views) == len(track.params)
+    for e, (view, p) in enumerate(zip(track.views, track.params)):
+        want = (p.v_mps, p.q_pa, p.mach, p.h_m, p.rho_kgpm3, p.l_cp_m, *p.psi_t_ins,
+                *p.psi_r_ins, p.l_ins_m)
+        got = (*view[:6], *view.psi_t_ins, *view.psi_r_ins, view.l_ins_m)
+        assert _bits(got) == _bits(want), e
+        t_ms = track.t_start_ms + e * track.refresh_ms
+        assert track.view_ms(t_ms) is view and track.at_ms(t_ms) is p

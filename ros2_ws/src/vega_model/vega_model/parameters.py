@@ -198,6 +198,28 @@ class ModelContext:
                     for t in np.asarray(t_s, dtype=float).ravel()]
         return _parameters_at_times(self, t_s, deviations, columns)
 
+    def parameter_columns_at_times(self, t_s, deviations: Mapping[str, float] | None = None
+                                   ) -> dict[str, np.ndarray] | None:
+        """The ``columns`` of :meth:`parameters_at_times` without building the objects (None
+        with a custom aerodynamic model); :meth:`parameters_from_columns` builds one."""
+        if not isinstance(self.aero, Aerodynamics):
+            return None
+        columns: dict[str, np.ndarray] = {}
+        _parameters_at_times(self, t_s, deviations, columns, build=False)
+        return columns
+
+    def parameters_from_columns(self, columns: Mapping[str, np.ndarray], index: int
+                                ) -> ModelParameters:
+        """Entry ``index`` of :meth:`parameter_columns_at_times`' columns: the object
+        :meth:`parameters_at_times` builds there (equal, field by field)."""
+        c = {name: float(column[index]) for name, column in columns.items()}
+        pairs = {name: (c.pop(name + "_0"), c.pop(name + "_1"))
+                 for name in ("psi_t_pvp", "psi_r_pvp", "psi_t_ins", "psi_r_ins")}
+        values = {**c, **pairs, **self._const, "aero": self.aero}
+        p = object.__new__(ModelParameters)
+        object.__setattr__(p, "__dict__", {name: values[name] for name in _FIELD_NAMES})
+        return p
+
     def parameters(self, t_s: float) -> ModelParameters:
         """Frozen-time model parameters at flight time ``t_s`` (clamped to the table)."""
         fc = self.conditions.at(t_s)
@@ -251,7 +273,8 @@ _VARYING = ("t_s", "v_mps", "q_pa", "mach", "rho_kgpm3", "h_m", "sound_speed_mps
 
 
 def _parameters_at_times(ctx: "ModelContext", t_s, deviations: Mapping[str, float] | None,
-                         columns: dict | None = None) -> list[ModelParameters]:
+                         columns: dict | None = None, build: bool = True
+                         ) -> list[ModelParameters]:
     """:meth:`ModelContext.parameters_at_times` (the formulas of :meth:`ModelContext.parameters`
     and :meth:`ModelParameters.perturbed`, on arrays: the same operations element by element,
     the aerodynamic tables through the same ``numpy.interp``)."""
@@ -289,6 +312,8 @@ def _parameters_at_times(ctx: "ModelContext", t_s, deviations: Mapping[str, floa
               lin["ti2"], lin["ri1"], lin["ri2"])
     if columns is not None:
         columns.update(zip(_VARYING, (np.asarray(c, dtype=float) for c in arrays)))
+    if not build:
+        return []
     const = ctx._const
     # ModelParameters(**fields) for each entry, built without the frozen dataclass' __init__
     # (one object.__setattr__ per field: ≈ 4 µs, the bulk of a run's 10 001 sets): its

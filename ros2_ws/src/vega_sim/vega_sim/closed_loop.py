@@ -360,7 +360,9 @@ def _run(scenario: Scenario, table: ControllerTable, seed, context, parameter_re
     plant, ins, controller, actuator = nodes.plant, nodes.ins, nodes.controller, nodes.actuator
     if perturbation is not None:
         actuator = _PerturbedActuator(perturbation, actuator, nodes.timing)
-    at_ms = plant.track.at_ms
+    # the INS reads its lever arm and mode shapes from the track's views (the same numbers as
+    # the parameter sets the SIL's INS node reads, ParameterTrack.at_ms)
+    at_ms = plant.track.view_ms
     # flat lists of numbers (the per-step objects die at once: no garbage-collector load)
     truths, bending, measurements, commands = [], [], [], []
     beta, rate, accel, held = [], [], [], []

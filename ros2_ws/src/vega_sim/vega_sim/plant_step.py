@@ -26,7 +26,8 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
-from typing import Mapping, NamedTuple, Sequence
+from collections.abc import Sequence
+from typing import Mapping, NamedTuple
 
 import numpy as np
 
@@ -113,6 +114,46 @@ def table_span_ms(time_range_s: tuple[float, float], frame_ms: int) -> tuple[flo
     return 1000.0 * lo, 1000.0 * hi - frame_ms
 
 
+class ParameterView(NamedTuple):
+    """The fields of a parameter set that the truth and the INS read every frame, under their
+    :class:`ModelParameters` names (``l_cp_m`` = x_CP − x_CG and ``l_ins_m`` = x_INS − x_CG, the
+    properties' operations): what :func:`vega_model.dynamics.alpha_and_q_alpha`,
+    :func:`~vega_model.dynamics.angle_of_attack` and
+    :func:`~vega_model.dynamics.ins_outputs_tuple` read, at ≈ 1/3 of a
+    :class:`ModelParameters`' cost to build (a Monte Carlo flight builds 10 001)."""
+
+    v_mps: float
+    q_pa: float
+    mach: float
+    h_m: float
+    rho_kgpm3: float
+    l_cp_m: float
+    psi_t_ins: tuple[float, float]
+    psi_r_ins: tuple[float, float]
+    l_ins_m: float
+
+
+class _LazyParameters(Sequence):
+    """The parameter sets of a track, each built on first access
+    (:meth:`ModelContext.parameters_from_columns`, then kept)."""
+
+    def __init__(self, context: ModelContext, columns: Mapping[str, np.ndarray], n: int):
+        self._context, self._columns = context, columns
+        self._items: list[ModelParameters | None] = [None] * n
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(len(self._items)))]
+        p = self._items[index]
+        if p is None:
+            e = range(len(self._items))[index]
+            p = self._items[e] = self._context.parameters_from_columns(self._columns, e)
+        return p
+
+
 class ParameterTrack:
     """Model parameters along [t_start, t_end + one frame), one set per refresh interval.
 
@@ -157,11 +198,29 @@ class ParameterTrack:
         self.deviations = dict(deviations or {})
         n = (t_end_ms - t_start_ms + frame_ms) // refresh_ms
         # parameters_at(context, t_start + refresh·e, deviations) for every e, on arrays
-        # (ModelContext.parameters_at_times: the same numbers)
-        self._columns: dict[str, np.ndarray] = {}
-        self.params: tuple[ModelParameters, ...] = tuple(context.parameters_at_times(
-            (t_start_ms + refresh_ms * np.arange(n, dtype=np.int64)) / 1000.0,
-            self.deviations, columns=self._columns))
+        # (ModelContext.parameters_at_times: the same numbers); the objects are built on first
+        # access, the per-frame readers take the views
+        times = (t_start_ms + refresh_ms * np.arange(n, dtype=np.int64)) / 1000.0
+        columns = context.parameter_columns_at_times(times, self.deviations)
+        if columns is None:                          # a custom aerodynamic model
+            self._columns: dict[str, np.ndarray] = {}
+            self.params: Sequence[ModelParameters] = tuple(
+                context.parameters_at_times(times, self.deviations))
+            self.views: tuple[ParameterView, ...] = tuple(
+                ParameterView(p.v_mps, p.q_pa, p.mach, p.h_m, p.rho_kgpm3, p.l_cp_m,
+                              p.psi_t_ins, p.psi_r_ins, p.l_ins_m) for p in self.params)
+        else:
+            self._columns = columns
+            self.params = _LazyParameters(context, columns, n)
+            c = {name: column.tolist() for name, column in columns.items()}
+            l_cp = (columns["x_cp_m"] - columns["x_cg_m"]).tolist()
+            l_ins = (self.params[0].x_ins_m - columns["x_cg_m"]).tolist()
+            self.views = tuple(
+                ParameterView(v, q, m, h, r, lcp, (t0, t1), (r0, r1), li)
+                for v, q, m, h, r, lcp, t0, t1, r0, r1, li in zip(
+                    c["v_mps"], c["q_pa"], c["mach"], c["h_m"], c["rho_kgpm3"], l_cp,
+                    c["psi_t_ins_0"], c["psi_t_ins_1"], c["psi_r_ins_0"], c["psi_r_ins_1"],
+                    l_ins))
         self._linear: LinearFrames | None = None
         self._nonlinear: list[NonlinearModel | None] = [None] * n
         self._kernel: tuple | None = None
@@ -178,6 +237,10 @@ class ParameterTrack:
     def at_ms(self, t_ms: int) -> ModelParameters:
         """Parameters in force at ``t_ms``."""
         return self.params[(t_ms - self.t_start_ms) // self.refresh_ms]
+
+    def view_ms(self, t_ms: int) -> ParameterView:
+        """The :class:`ParameterView` of the parameters in force at ``t_ms``."""
+        return self.views[(t_ms - self.t_start_ms) // self.refresh_ms]
 
     def kernel_inputs(self) -> tuple:
         """(constants of every entry, Mach tables) for the compiled nonlinear plant
@@ -359,8 +422,8 @@ class PlantWind:
             turbulence != "none" and not thesis_constant_dryden)
         self._thesis = bool(thesis_constant_dryden)
         if self._thesis:
-            h = [p.h_m for p in track.params]
-            v = [p.v_mps for p in track.params]
+            h = [p.h_m for p in track.views]
+            v = [p.v_mps for p in track.views]
             a, g = thesis_dryden_coefficients(h, v, data, turbulence, dt_ms / 1000.0)
             self._a, self._g = a.tolist(), g.tolist()
         self._state = 0.0
@@ -373,10 +436,10 @@ class PlantWind:
         :meth:`WindModel.entry_steps` computes them at once."""
         if self._sequence is None:
             track = self._track
-            params = track.params
+            views = track.views
             self._sequence = self._model.entry_steps(
                 track.t_start_ms, self._dt_ms, track.refresh_ms // self._dt_ms,
-                [p.h_m for p in params], [p.v_mps for p in params])
+                [p.h_m for p in views], [p.v_mps for p in views])
             self._array = np.array(self._sequence)
         return self._sequence
 
@@ -533,7 +596,7 @@ class PlantStep:
     def _truth(self) -> TruthOut:
         t = self._t_ms
         e = self.track.entry(t)
-        p = self.track.params[e]
+        p = self.track.views[e]
         w = self._winds[0]
         s = self._x.tolist()
         if self._linear is not None:
