@@ -184,6 +184,11 @@ def test_held_command_by_hand():
     held = bagcheck._held_command_rad(_cmd([24, 44, 64], [0.1, math.nan, 0.3]),
                                       np.array([60, 80, 90], np.int64), 1, ctx)
     assert held.tolist() == [0.1, 0.3, 0.3]
+    # a stamp between whole ms counts from the ms it falls in (24.9 ms → from 24 + 15 = 39 ms)
+    cmd = bagio.TopicColumns(CMD, "", np.array([24_900_000], np.int64), {
+        "stamp_ns": np.array([24_900_000], np.int64), "deflection_cmd_rad": np.array([0.1])})
+    held = bagcheck._held_command_rad(cmd, np.array([39, 40], np.int64), 1, ctx)
+    assert held.tolist() == [-0.125, 0.1]
     # nothing usable: β(t_start) throughout
     for cmd in (None, _cmd([], []), _cmd([24], [math.inf])):
         held = bagcheck._held_command_rad(cmd, t, 1, ctx)
@@ -749,6 +754,22 @@ def test_status_counts_by_name(small):
     assert check.compute_time_s.size == 0
     assert not check.passed and "controller compute time: no /vega/diagnostics messages" in \
         check.failures
+
+
+def test_compute_time_from_the_bag(small):
+    """Without the diagnostics topic: "no diagnostics"; an overrun is dated by its message's
+    stamp in whole ms (20.0249 s → 20.024 s)."""
+    _, _, bag = small
+    h = {x.key: x for x in bagcheck.check_run_bag(_without(bag, DIAG)).health}
+    assert (h["compute_time"].value, h["compute_time"].passed) == ("no diagnostics", False)
+    st = bag[DIAG]["stamp_ns"].copy()
+    st[0] = 20_024_900_000
+    ct = bag[DIAG]["compute_time_s"].copy()
+    ct[0] = 0.02
+    h = {x.key: x for x in bagcheck.check_run_bag(_edit(bag, DIAG, stamp_ns=st,
+                                                         compute_time_s=ct)).health}
+    assert h["compute_time"].detail.startswith("1 of 25 command(s) over budget (allowed 0), "
+                                               "first at 20.024 s (20 ms); ")
 
 
 def test_to_dict_layout_and_numbers(small, tmp_path):
