@@ -153,3 +153,21 @@ def test_parameter_views_are_the_parameter_sets_fields(deviations):
         assert _bits(got) == _bits(want), e
         t_ms = track.t_start_ms + e * track.refresh_ms
         assert track.view_ms(t_ms) is view and track.at_ms(t_ms) is p
+
+
+def test_actuator_run_tuples_equal_single_steps_at_every_limit():
+    """Random commands (repeated objects, NaN, ±inf among them) that drive the nozzle onto both
+    stops and both rate limits: run_tuples gives step's numbers, and each limit is reached."""
+    params = ActuatorParams.from_vehicle(default_context().vehicle)
+    a, b = TvcActuator(params, -0.02), TvcActuator(params, -0.02)
+    rng = np.random.default_rng(12)
+    levels = (rng.normal(size=60) * 0.3).tolist() + [math.nan, math.inf, -math.inf]
+    commands = [levels[int(i)] for i in rng.integers(0, len(levels), 80) for _ in range(400)]
+    got = a.run_tuples(commands)
+    want = [b.step(u) + (b.command_rad,) for u in commands]
+    assert [_bits(g) for g in got] == [_bits(w) for w in zip(*want)]
+    assert a.state == b.state and a.command_rad == b.command_rad
+    beta, rate = np.array(got[0]), np.array(got[1])
+    pos, slew = params.position_limit_rad, params.rate_limit_radps
+    assert (beta == pos).any() and (beta == -pos).any()
+    assert (rate == slew).any() and (rate == -slew).any()

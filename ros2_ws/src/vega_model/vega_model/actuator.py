@@ -229,6 +229,7 @@ class TvcActuator:
         isfinite = math.isfinite
         b0, r0, a, held = self.beta_rad, self.beta_dot_radps, self.beta_ddot_radps2, \
             self.command_rad
+        neg_rate, neg_pos, neg_step = -rate, -pos, -max_step    # the negated limits, once
         rows = []
         append = rows.append
         last = rows                          # no command yet (a held command repeats as the
@@ -245,21 +246,23 @@ class TvcActuator:
             if r > rate:
                 r = rate
                 b = b0 + half_dt * (r0 + r)
-            elif r < -rate:
-                r = -rate
+            elif r < neg_rate:
+                r = neg_rate
                 b = b0 + half_dt * (r0 + r)
-            if b - b0 > max_step:
+            d = b - b0
+            if d > max_step:
                 b = b0 + max_step
-            elif b - b0 < -max_step:
+            elif d < neg_step:
                 b = b0 - max_step
             if b > pos:
                 b = pos
                 r = min(r, 0.0)
-            elif b < -pos:
-                b = -pos
+            elif b < neg_pos:
+                b = neg_pos
                 r = max(r, 0.0)
             a = w2 * (u - b) - c * r
-            if (a > 0.0 and (r >= rate or b >= pos)) or (a < 0.0 and (r <= -rate or b <= -pos)):
+            if (a > 0.0 and (r >= rate or b >= pos)) or (a < 0.0 and (r <= neg_rate
+                                                                  or b <= neg_pos)):
                 a = 0.0
             append((b, r, a, held))
             b0, r0 = b, r
