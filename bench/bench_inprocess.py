@@ -160,9 +160,9 @@ def _compare(old_rev: str, repeat: int, samples: int) -> None:
           f"({100.0 * (1.0 - n / o):.1f} % less CPU)")
     o, n = best["old"], best["new"]
     print(f"{'plant node start-up, CPU s':38s} {o['startup_cpu_s']:8.3f}s "
-          f"{n['startup_cpu_s']:8.3f}s  (+{n['startup_cpu_s'] - o['startup_cpu_s']:.3f} s)")
+          f"{n['startup_cpu_s']:8.3f}s  ({n['startup_cpu_s'] - o['startup_cpu_s']:+.3f} s)")
     print(f"{'plant node start-up, wall s':38s} {o['startup_wall_s']:8.3f}s "
-          f"{n['startup_wall_s']:8.3f}s  (+{n['startup_wall_s'] - o['startup_wall_s']:.3f} s)")
+          f"{n['startup_wall_s']:8.3f}s  ({n['startup_wall_s'] - o['startup_wall_s']:+.3f} s)")
 
 
 def _scaling(runs: int) -> None:
