@@ -210,6 +210,41 @@ def test_bag_result_is_the_in_process_run(small):
     assert got.beta_dot_radps[0] == 0.0 and got.beta_ddot_radps2[0] == 0.0
 
 
+def test_held_command_uses_the_first_frames_step(small):
+    """The physics step of the held command is the first actuator frame's: another step in
+    frame 1 changes only that frame's instants (samples 11 … 20 of the arrays)."""
+    run, _, bag = small
+    period = bag[ACT]["sample_period_s"].copy()
+    period[1] = 0.002
+    got = bagcheck.bag_result(_edit(bag, ACT, sample_period_s=period))
+    want = run.result.beta_cmd_rad
+    assert np.array_equal(got.beta_cmd_rad[21:], want[21:])
+    assert np.array_equal(got.beta_cmd_rad[:11], want[:11])
+
+
+def test_held_command_step_in_whole_ms_by_a_plain_loop(small):
+    """A 0.75 s step (750 ms; ×1001 would give 751): the held command against a plain loop
+    over the commands (applied from stamp + 15 ms, acting on the step ending at t when
+    t − 750 ms ≥ that instant)."""
+    _, _, bag = small
+    period = np.full(len(bag[ACT]), 0.75)
+    ctx = bagcheck.RunContext(None, TIMING, None, 0.5)
+    early = bag[CMD]["stamp_ns"] - 1499 * MS       # commands 18.525 … 19.005 s
+    got = bagcheck.bag_result(_edit(_edit(bag, ACT, sample_period_s=period), CMD,
+                                    stamp_ns=early), ctx)
+    stamps = early // MS
+    values = bag[CMD]["deflection_cmd_rad"]
+    want = []
+    for t in got.act_t_ms:
+        held = 0.5
+        for s_ms, v in zip(stamps, values):
+            if s_ms + 15 <= t - 750:
+                held = v
+        want.append(held)
+    assert got.beta_cmd_rad.tolist() == want
+    assert len(set(want)) > 3          # the commands change over the samples
+
+
 def test_bag_result_without_a_start_time(small):
     """No scenario: the samples as recorded, nothing prepended."""
     _, _, bag = small
@@ -235,6 +270,7 @@ def test_bag_result_seed_and_missing_topics(small):
     assert bagcheck.bag_result(_meta(bag, META_SEED="-3")).seed == -3
     assert bagcheck.bag_result(_meta(bag, META_SEED="12")).seed == 12
     assert bagcheck.bag_result(_meta(bag, META_SEED="x1")).seed == -1
+    assert bagcheck.bag_result(_meta(bag, META_SEED="X5")).seed == -1
     assert bagcheck.bag_result(_meta(bag, META_SEED=None)).seed == -1
     got = bagcheck.bag_result(_without(_without(bag, INS), CMD))
     for name in ("ins_sample_ms", "ins_stamp_ms", "cmd_sample_ms", "cmd_stamp_ms", "cmd_status"):
