@@ -710,6 +710,7 @@ def test_verdict_of_the_complete_bag(small):
                               "run metadata + scenario   yes"
     assert lines[head + 7] == lines[-3]
     assert check.requirements.table() in check.table()
+    assert check.context == bagcheck.run_context(bag) and check.context.t_start_ms == 20000
     again = bagcheck.check_bag(path)
     assert again.to_dict() == check.to_dict()
 
