@@ -409,3 +409,13 @@ def test_flush_shares_one_deadline():
     acked.clear()
     replay._flush(pubs, 0.0)
     assert acked == [0, 0, 0]
+
+
+def test_flush_waits_in_nanoseconds(monkeypatch):
+    """With the clock standing still each publisher gets exactly 2 s = 2 000 000 000 ns."""
+    acked = []
+    pubs = [SimpleNamespace(wait_for_all_acked=lambda d: acked.append(d.nanoseconds))
+            for _ in range(2)]
+    monkeypatch.setattr(replay.time, "monotonic", lambda: 1000.0)
+    replay._flush(pubs, 2.0)
+    assert acked == [2_000_000_000, 2_000_000_000]
