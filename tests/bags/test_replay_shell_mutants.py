@@ -399,6 +399,18 @@ def test_feed_a_controller_that_ends_or_dies_early():
     assert loop.waited == [10.0] and len(loop.published) == 8
 
 
+def test_feed_with_the_clock_standing_still(monkeypatch):
+    """Stall limit 0 and a clock that does not move: the deadline is not passed (">"), so the
+    loop still spins once and gets the command; the log line says 0.00 s."""
+    monkeypatch.setattr(replay, "STALL_TIMEOUT_S", 0.0)
+    monkeypatch.setattr(replay.time, "monotonic", lambda: 500.0)
+    raw, samples = _ins(3)
+    loop = _Loop(samples)
+    assert loop.feed(raw) is None
+    assert loop.received == [b"cmd0", b"cmd1"]
+    assert loop.said[1] == "3 measurements replayed in 0.00 s"
+
+
 def test_flush_shares_one_deadline():
     acked = []
     pubs = [SimpleNamespace(wait_for_all_acked=lambda d: acked.append(d.nanoseconds))
