@@ -21,6 +21,7 @@ import os
 import pickle
 import shutil
 import tempfile
+import time
 from pathlib import Path
 
 from fixture_bags import ShortRun, short_run, write_bag
@@ -55,6 +56,9 @@ def cached_short_run(span_s) -> tuple[ShortRun, Path]:
         with open(cache.parent / ".lock", "w") as lock:
             fcntl.flock(lock, fcntl.LOCK_EX)     # one process flies; the others wait for it
             if not done.is_file():
+                for old in cache.parent.iterdir():   # entries of inputs a day old and more
+                    if old.is_dir() and time.time() - old.stat().st_mtime > 86400:
+                        shutil.rmtree(old, ignore_errors=True)
                 shutil.rmtree(cache, ignore_errors=True)     # a writer that died midway
                 (cache / "run").mkdir(parents=True)
                 run = short_run(cache / "run", span_s=span_s)
