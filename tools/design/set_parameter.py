@@ -8,7 +8,7 @@ notch at 82 s (notch1_zeta_num 0.0467 → 0.040) meets the criterion with k_ż �
 
     python tools/design/undo_drift.py SHIPPED --out U.npz
     python tools/design/set_parameter.py U.npz 82 notch1_zeta_num 0.040 --out E.npz
-    python tools/design/drift_checked.py E.npz --out NEW.npz
+    vega design --drift-from E.npz --out NEW.npz
 
 The grid point and the flown controller midway to both neighbours are evaluated on their
 design sets and printed with their requirement misses

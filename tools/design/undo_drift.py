@@ -8,7 +8,7 @@ every grid point whose tuning record (``solver.how``) says it was scaled, and wi
 ``drift`` record; every other parameter and record entry is kept. Then:
 
     python tools/design/undo_drift.py SHIPPED --out UNSCALED.npz
-    python tools/design/drift_checked.py UNSCALED.npz --out NEW.npz   (or vega design --drift-from)
+    vega design --drift-from UNSCALED.npz --out NEW.npz
 
 Usage: OPENBLAS_NUM_THREADS=1 .venv/bin/vega-env python tools/design/undo_drift.py TABLE
        --out FILE.npz

@@ -37,6 +37,9 @@ def _run(args: argparse.Namespace) -> int:
         PARAMETERS, TAIL_OFF_HOLD_S, design_flight, rescale_drift, retune_tail,
         write_structured_table,
     )
+    # step 6 refuses a drift-rate scaling that loses vega robust's worst-case bending criterion
+    # (passed in: robust imports structured)
+    from offline_synthesis.structured_worst_case import worst_case_bending_ok
 
     out = npz_out(args.out)
     if not 1 <= args.maxiter <= 1000:
@@ -84,7 +87,8 @@ def _run(args: argparse.Namespace) -> int:
     if args.drift_from:
         design = rescale_drift(context, sorted(anchor_x),
                                [anchor_x[t] for t in sorted(anchor_x)], meta["anchors_s"],
-                               tuning, progress=lambda line: print(line, flush=True))
+                               tuning, progress=lambda line: print(line, flush=True),
+                               worst_case=worst_case_bending_ok)
     elif args.tail_from:
         design = retune_tail(context, sorted(anchor_x), [anchor_x[t] for t in sorted(anchor_x)],
                              meta["anchors_s"], tuning, seed=args.seed + 4000,
@@ -93,6 +97,7 @@ def _run(args: argparse.Namespace) -> int:
         design = design_flight(context, seed=args.seed, maxiter=args.maxiter,
                                workers=args.workers, anchor_x=anchor_x,
                                repair=bool(args.repair_from), **kwargs,
+                               drift_worst_case=worst_case_bending_ok,
                                progress=lambda line: print(line, flush=True))
     table = write_structured_table(out, design, context)
     report = {"table": str(out), "run_time_s": time.perf_counter() - start,
