@@ -24,6 +24,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from design_table import misses_check, write_design
 
 
 def _design(path: Path):
@@ -57,14 +58,7 @@ def main(argv=None) -> int:
     merged.update({t: x for t, x in other.items() if inside(t)})
     times = sorted(merged)
     worse = []
-
-    def check(label, t_s, K_new, K_old):
-        ds = S.design_set(context, t_s, uset)
-        new = S.requirement_misses(S.evaluate_discrete(K_new, ds, detail=True)[1])
-        old = S.requirement_misses(S.evaluate_discrete(K_old, ds, detail=True)[1])
-        print(f"{label} {t_s:g} s: misses {new} (base {old})", flush=True)
-        if any(a > b for a, b in zip(new, old)):
-            worse.append(f"{label} {t_s:g} s")
+    check = misses_check(context, uset, worse, against="base")
 
     def discrete(t, x):
         return S.discretise(*S.controller_ss(x, context.parameters(float(t)).omega_radps),
@@ -99,18 +93,8 @@ def main(argv=None) -> int:
     grafts.append({"window_s": [args.start, args.stop],
                    "from_sha256": hashlib.sha256(args.other.read_bytes()).hexdigest()})
     tuning["grafts"] = grafts
-    details = [S.evaluate(np.asarray(merged[t], dtype=float),
-                          S.design_set(context, float(t), uset), detail=True)[1] for t in times]
-    design = S.StructuredDesign(np.array(times), np.array(
-        [context.parameters(float(t)).v_mps for t in times]), np.array([merged[t] for t in times]),
-        details, tuple(base_meta["anchors_s"]), tuning)
-    S.write_structured_table(args.out, design, context)
-    from offline_synthesis.margins import json_ready
-
-    report = {"table": str(args.out), "grid_times_s": design.grid_times_s,
-              "grid_v_mps": design.grid_v_mps, "anchors_s": design.anchors_s,
-              "tuning": design.tuning, "per_grid_time": design.details}
-    args.out.with_suffix(".json").write_text(json.dumps(json_ready(report), indent=1) + "\n")
+    write_design(args.out, context, uset, times, [merged[t] for t in times],
+                 base_meta["anchors_s"], tuning)
     print(f"wrote {args.out} ({len(times)} grid points) and {args.out.with_suffix('.json')}")
     return 0
 

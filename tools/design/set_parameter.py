@@ -28,12 +28,12 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from design_table import misses_check, write_design
 
 
 def main(argv=None) -> int:
     """Edit, check, write (table and JSON report, as `vega design` does)."""
     from offline_synthesis import structured as S
-    from offline_synthesis.margins import json_ready
     from vega_model.parameters import default_context
     from vega_model.uncertainty import UncertaintySet
 
@@ -61,14 +61,7 @@ def main(argv=None) -> int:
     context = default_context()
     uset = UncertaintySet.from_vehicle(context.vehicle)
     worse = []
-
-    def check(label, t_s, K_new, K_old):
-        ds = S.design_set(context, t_s, uset)
-        a = S.requirement_misses(S.evaluate_discrete(K_new, ds, detail=True)[1])
-        b = S.requirement_misses(S.evaluate_discrete(K_old, ds, detail=True)[1])
-        print(f"{label} {t_s:g} s: misses {a} (before {b})", flush=True)
-        if any(x > y for x, y in zip(a, b)):
-            worse.append(f"{label} {t_s:g} s")
+    check = misses_check(context, uset, worse)
 
     dt = 1.0 / float(context.vehicle["controller.rate_hz"])
     omega = context.parameters(args.time).omega_radps
@@ -92,16 +85,7 @@ def main(argv=None) -> int:
     how = dict(tuning.get("how", {}))
     how[f"{args.time:g}"] = f"{how.get(f'{args.time:g}', 'given')}; {args.name} set by hand"
     tuning["how"] = how
-    details = [S.evaluate(x, S.design_set(context, t, uset), detail=True)[1]
-               for t, x in zip(times, new)]
-    design = S.StructuredDesign(np.array(times), np.array(
-        [context.parameters(t).v_mps for t in times]), np.array(new), details,
-        tuple(meta["anchors_s"]), tuning)
-    S.write_structured_table(args.out, design, context)
-    report = {"table": str(args.out), "grid_times_s": design.grid_times_s,
-              "grid_v_mps": design.grid_v_mps, "anchors_s": design.anchors_s,
-              "tuning": design.tuning, "per_grid_time": design.details}
-    args.out.with_suffix(".json").write_text(json.dumps(json_ready(report), indent=1) + "\n")
+    write_design(args.out, context, uset, times, new, meta["anchors_s"], tuning)
     print(f"wrote {args.out} ({args.name} at {args.time:g} s: {old[k][i]:g} -> {args.value:g}) "
           f"and {args.out.with_suffix('.json')}")
     return 0

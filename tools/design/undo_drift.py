@@ -22,6 +22,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from design_table import write_design
 
 MARK = "; k_zdot x "
 """What :func:`offline_synthesis.structured.scale_drift` appends to a scaled point's record."""
@@ -56,8 +57,6 @@ def unscaled(meta: dict) -> tuple[list[float], list[np.ndarray], dict]:
 
 def main(argv=None) -> int:
     """Read, undo, write (table and JSON report, as `vega design` does)."""
-    from offline_synthesis import structured as S
-    from offline_synthesis.margins import json_ready
     from vega_model.parameters import default_context
     from vega_model.uncertainty import UncertaintySet
 
@@ -71,16 +70,7 @@ def main(argv=None) -> int:
     times, xs, tuning = unscaled(meta)
     context = default_context()
     uset = UncertaintySet.from_vehicle(context.vehicle)
-    details = [S.evaluate(x, S.design_set(context, t, uset), detail=True)[1]
-               for t, x in zip(times, xs)]
-    design = S.StructuredDesign(np.array(times), np.array(
-        [context.parameters(t).v_mps for t in times]), np.array(xs), details,
-        tuple(meta["anchors_s"]), tuning)
-    S.write_structured_table(args.out, design, context)
-    report = {"table": str(args.out), "grid_times_s": design.grid_times_s,
-              "grid_v_mps": design.grid_v_mps, "anchors_s": design.anchors_s,
-              "tuning": design.tuning, "per_grid_time": design.details}
-    args.out.with_suffix(".json").write_text(json.dumps(json_ready(report), indent=1) + "\n")
+    write_design(args.out, context, uset, times, xs, meta["anchors_s"], tuning)
     print(f"wrote {args.out} ({len(times)} grid points, drift step undone) and "
           f"{args.out.with_suffix('.json')}")
     return 0
