@@ -183,7 +183,8 @@ def test_with_the_deeper_82_s_notch_the_rule_keeps_the_scaling(context):
     at 80 and 82 s: the rule keeps both scaled (what `vega design --drift-from` did)."""
     meta = json.loads(str(np.load(SHIPPED)["metadata"]))
     assert [(e["t_s"], e["parameter"], e["to"]) for e in meta["solver"]["edits"]] == [
-        (82.0, "notch1_zeta_num", 0.04)]
+        (82.0, "notch1_zeta_num", 0.04), (43.0, "notch1_zeta_num", 0.035),
+        (34.5, "log10_lp1_radps", 1.17)]
     given = _shipped_unscaled((80.0, 82.0))
     assert given[82.0][0][7] == 0.04                       # notch1_zeta_num
     lines = []
