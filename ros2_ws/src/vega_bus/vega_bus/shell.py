@@ -658,7 +658,7 @@ complete run (:data:`HARD_SHUTDOWN_MARGIN_S`)."""
 def _fault_stream():
     """The stream :mod:`faulthandler` writes to: stderr if it is a real file (a node's log),
     else the process's original stderr (in-process use with stderr captured), else None (no
-    stacks, no backstop: nothing to write them to)."""
+    stacks, and a failed node has no GIL-free backstop; a finished one still has SIGALRM's)."""
     for stream in (sys.stderr, sys.__stderr__):
         try:
             if stream is not None:
