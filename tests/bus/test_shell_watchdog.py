@@ -10,6 +10,26 @@ import pytest
 from load_scaling import budget_s
 
 
+def _stop_flag_process(function: str, sleep_s: float, after: str = ""):
+    """A Python process with the nodes' stop flag installed that, inside a function named
+    ``function`` (whose name its stacks must show), prints "ready" and sleeps ``sleep_s`` —
+    "ready" from inside, so that a signal sent on it finds the process in the function."""
+    script = textwrap.dedent(f"""
+        import time
+        from vega_bus.shell import StopFlag
+        StopFlag()
+        def {function}():
+            print("ready", flush=True)
+            time.sleep({sleep_s})
+        {function}()
+        {after}
+    """)
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    assert proc.stdout.readline() == "ready\n"
+    return proc
+
+
 @pytest.mark.parametrize("code", [0, 1])
 def test_hanging_teardown_exits_with_the_runs_code(code):
     script = textwrap.dedent(f"""
@@ -100,20 +120,9 @@ def test_a_node_writes_its_stacks_on_request_and_goes_on():
     import signal
     import time
 
-    script = textwrap.dedent("""
-        import sys, time
-        from vega_bus.shell import StopFlag
-        StopFlag()
-        print("ready", flush=True)
-        def waiting_for_the_final_report():
-            time.sleep(1.5)
-        waiting_for_the_final_report()
-        print("went on", flush=True)
-    """)
-    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    proc = _stop_flag_process("waiting_for_the_final_report", 1.5,
+                              after='print("went on", flush=True)')
     try:
-        assert proc.stdout.readline() == "ready\n"
         time.sleep(0.3)
         proc.send_signal(signal.SIGUSR1)
         out, err = proc.communicate(timeout=budget_s(30.0))
@@ -131,19 +140,8 @@ def test_the_orchestrator_asks_a_hung_node_for_its_stacks():
 
     from vega_bringup.orchestrate import Supervisor
 
-    script = textwrap.dedent("""
-        import time
-        from vega_bus.shell import StopFlag
-        StopFlag()
-        print("ready", flush=True)
-        def hung_in_teardown():
-            time.sleep(30)
-        hung_in_teardown()
-    """)
-    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    proc = _stop_flag_process("hung_in_teardown", 30)
     try:
-        assert proc.stdout.readline() == "ready\n"
         assert Supervisor._dump_stacks([SimpleNamespace(popen=proc)]) is True
         time.sleep(0.2)
     finally:

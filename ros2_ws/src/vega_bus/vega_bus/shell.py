@@ -685,7 +685,9 @@ def _close_with_watchdog(name: str, shell: Shell, code: int) -> None:
     stream = _fault_stream()
     if stream is not None:
         faulthandler.dump_traceback_later(hard_s, exit=code != EXIT_OK, file=stream)
-    if code == EXIT_OK:
+    # signal dispositions can be set from the main thread only (a node's body runs there)
+    alarm = code == EXIT_OK and threading.current_thread() is threading.main_thread()
+    if alarm:
         signal.signal(TEARDOWN_WATCHDOG_SIGNAL, signal.SIG_DFL)
         signal.alarm(math.ceil(hard_s) + 1)
     try:
@@ -693,6 +695,7 @@ def _close_with_watchdog(name: str, shell: Shell, code: int) -> None:
     except Exception:  # noqa: BLE001 - best effort at exit
         pass
     finally:
-        signal.alarm(0)
+        if alarm:
+            signal.alarm(0)
         faulthandler.cancel_dump_traceback_later()
         watchdog.cancel()
