@@ -226,8 +226,9 @@ def run_module(name, target, max_children, commit, tree, collect=False, only=(),
     ``only``: mutant-name globs (mutmut's own selection, e.g. ``vega_bags.bagio.x_git*``): run
     just those; the others count as "not checked" (a partial run, marked as such).
     ``rerun``: the record of an earlier full run of the same source (:func:`_rerun_base`): only
-    its survivors are run again, every other mutant keeps its earlier status (killed stays
-    killed: tests were only added), and the counts are those of the whole module.
+    its survivors and "no tests" mutants are run again, every other mutant keeps its earlier
+    status (killed stays killed: tests were only added), and the counts are those of the whole
+    module.
     """
     if collect:
         stage = WORK / name
@@ -320,7 +321,9 @@ def _rerun_base(name, target, commit):
     if not same:
         raise SystemExit(f"mutation: {name}: {target['source']} changed since {old}: run the "
                          f"whole module")
-    base["survivors"] = [m["name"] for m in base["not_killed"] if m["status"] == "survived"]
+    # "no tests" too: a test added since may now run the function
+    base["survivors"] = [m["name"] for m in base["not_killed"]
+                         if m["status"] in ("survived", "no tests")]
     base["commit"] = old
     return base
 
@@ -328,7 +331,7 @@ def _rerun_base(name, target, commit):
 def _merge_rerun(base, rerun_mutants):
     """Every mutant of ``base``'s full run, its survivors with their re-run statuses."""
     again = {m["name"]: m for m in rerun_mutants if m["status"] != "not checked"}
-    out = [again.get(m["name"], m) if m["status"] == "survived" else m
+    out = [again.get(m["name"], m) if m["status"] in ("survived", "no tests") else m
            for m in base["not_killed"]]
     # the full run's killed mutants are not listed by name in its record: counted as such
     out += [{"name": f"(killed in the full run, #{i})", "status": "killed"}
@@ -410,9 +413,9 @@ def main(argv=None):
                         help="run only the mutants whose names match (mutmut's glob; "
                              "repeatable): a partial run, the rest is 'not checked'")
     parser.add_argument("--rerun-survivors", action="store_true",
-                        help="run again only the survivors of the module's last full run (same "
-                             "source file), keep every other mutant's status; the table shows "
-                             "the whole module")
+                        help="run again only the survivors and 'no tests' mutants of the "
+                             "module's last full run (same source file), keep every other "
+                             "mutant's status; the table shows the whole module")
     parser.add_argument("--collect", action="store_true",
                         help="do not run: tabulate what the last (possibly interrupted) run of "
                              "each module recorded in build/mutation/<module>/")
