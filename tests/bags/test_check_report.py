@@ -61,3 +61,25 @@ def test_bad_bag_writes_nothing(tmp_path):
     with pytest.raises(bagio.BagError, match="no such file"):
         report.write_report(tmp_path / "missing", tmp_path / "report")
     assert not (tmp_path / "report").exists()
+
+
+def test_plot_labels_fit_their_figures(run, tmp_path):
+    """The plots are laid out with fixed margins (no tight_layout, docs/SIL_SPEED.md): every
+    title, tick label, axis label and legend of every report plot lies inside its figure, and
+    stacked axes do not overlap (with 1 px of rounding)."""
+    import matplotlib.pyplot as plt
+
+    check = report.check_bag(write_bag(tmp_path / "bag", run))
+    figs = report._figures(check, None)
+    assert sorted(figs) == sorted(report.PLOTS)
+    for name, fig in figs.items():
+        renderer = fig.canvas.get_renderer()
+        box = fig.bbox
+        tight = [ax.get_tightbbox(renderer) for ax in fig.axes]
+        for ax, tb in zip(fig.axes, tight):
+            assert (tb.x0 >= box.x0 - 1 and tb.y0 >= box.y0 - 1 and tb.x1 <= box.x1 + 1
+                    and tb.y1 <= box.y1 + 1), (name, ax.get_ylabel(), tb, box)
+        # stacked axes: the lower one's labels and title stay below the upper one's ticks
+        for upper, lower in zip(tight, tight[1:]):
+            assert lower.y1 <= upper.y0 + 1, (name, upper, lower)
+        plt.close(fig)

@@ -108,8 +108,32 @@ def markdown(check: BagCheck, plots=PLOTS) -> str:
     return "\n".join(lines)
 
 
+def _fixed_margins(fig, left_in: float = 0.8, right_in: float = 0.2, bottom_in: float = 0.55,
+                   top_in: float = 0.35, gap_in: float = 0.75) -> None:
+    """Place the axes with fixed margins [inch] instead of ``tight_layout``, which measures
+    every label by drawing the figure once more (≈ half of the plotting time: docs/SIL_SPEED.md).
+    The margins hold the report's labels at 10 pt and the status names of the status plot
+    (``left_in`` 1.8); ``gap_in`` between stacked axes holds a tick row and an x label."""
+    w, h = fig.get_size_inches()
+    fig.subplots_adjust(left=left_in / w, right=1.0 - right_in / w, bottom=bottom_in / h,
+                        top=1.0 - top_in / h, hspace=gap_in / (h / len(fig.axes)))
+
+
 def _plot(check: BagCheck, spec: RequirementSpec | None, out: Path) -> list[Path]:
     """Write the :data:`PLOTS` into ``out``; return their paths."""
+    import matplotlib.pyplot as plt
+
+    paths = []
+    for name, fig in _figures(check, spec).items():
+        path = out / name
+        fig.savefig(path, dpi=100)
+        plt.close(fig)
+        paths.append(path)
+    return paths
+
+
+def _figures(check: BagCheck, spec: RequirementSpec | None) -> dict:
+    """The :data:`PLOTS` as matplotlib figures (file name → figure), laid out."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -146,8 +170,6 @@ def _plot(check: BagCheck, spec: RequirementSpec | None, out: Path) -> list[Path
     limits(a2, spec.drift_rate_mps, f"|ż| < {spec.drift_rate_mps:g} m/s")
     a2.set_ylim(-1.2 * spec.drift_rate_mps, 1.2 * spec.drift_rate_mps)
     a2.set_ylabel("ż [m/s]")
-    a1.legend(fontsize=8)
-    a2.legend(fontsize=8)
     figs["drift.png"] = fig
 
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 7))
@@ -164,12 +186,10 @@ def _plot(check: BagCheck, spec: RequirementSpec | None, out: Path) -> list[Path
         a1.plot(mach, -obj, ":", color="0.5", lw=0.8)
     a1.set_xlabel("Mach [-]")
     a1.set_ylabel("Qα [kPa·deg]")
-    a1.legend(fontsize=8)
     a2.plot(t, r.q_alpha_pa_rad * kpa_deg, lw=0.8, label="Qα")
     a2.plot(t, spec.envelope(r.mach) * kpa_deg, "r--", lw=0.8, label="envelope(Mach(t))")
     a2.plot(t, -spec.envelope(r.mach) * kpa_deg, "r--", lw=0.8)
     a2.set_ylabel("Qα [kPa·deg]")
-    a2.legend(fontsize=8)
     figs["q_alpha.png"] = fig
 
     fig, ax = plt.subplots(figsize=(8, 4))
@@ -198,21 +218,16 @@ def _plot(check: BagCheck, spec: RequirementSpec | None, out: Path) -> list[Path
     ax.set_ylim(min(STATUS_NAMES) - 0.5, max(STATUS_NAMES) + 0.5)
     figs["status.png"] = fig
 
-    paths = []
     for name, fig in figs.items():
         for ax in fig.axes:
             ax.grid(True, alpha=0.3)
             if ax.get_xlabel() == "":
                 ax.set_xlabel("t [s]")
-            if not ax.get_legend() and ax.get_legend_handles_labels()[0]:
-                ax.legend(fontsize=8)
+            if ax.get_legend_handles_labels()[0]:
+                ax.legend(fontsize=8, loc="upper right")
         fig.axes[0].set_title(f"{PLOTS[name]} ({title})", fontsize=9)
-        fig.tight_layout()
-        path = out / name
-        fig.savefig(path, dpi=100)
-        plt.close(fig)
-        paths.append(path)
-    return paths
+        _fixed_margins(fig, left_in=1.8 if name == "status.png" else 0.8)
+    return figs
 
 
 def write_report(bag: str | Path, out_dir: str | Path,
