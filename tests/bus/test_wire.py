@@ -157,17 +157,25 @@ def test_no_wall_clock_field_on_a_data_topic():
 
 def test_a_stamp_off_the_millisecond_grid():
     """Strict reading raises (the truth-side nodes: run failure); the controller's reading
-    rounds down and marks the measurement invalid (its input validation)."""
-    from vega_gnc.controller_node import to_sample
+    (bytes, as its node takes them) rounds down and marks the measurement invalid (its input
+    validation), for either stamp."""
+    from rclpy.serialization import serialize_message
+    from vega_gnc.controller_node import sample_decoder
     from vega_msgs.msg import InsMeasurement
 
+    to_sample = sample_decoder()
     msg = wire.to_msg(_sample(InsOut)._replace(valid=True), InsMeasurement())
-    assert to_sample(msg) == wire.from_msg(InsOut, msg)
+    assert to_sample(serialize_message(msg)) == wire.from_msg(InsOut, msg)
     msg.sample_stamp.nanosec += 1
     with pytest.raises(ValueError, match="not on a whole millisecond"):
         wire.from_msg(InsOut, msg)
-    got = to_sample(msg)
+    got = to_sample(serialize_message(msg))
     assert got.valid is False and got.sample_ms == _sample(InsOut).sample_ms
+    msg.sample_stamp.nanosec -= 1
+    assert to_sample(serialize_message(msg)).valid is True      # the flag does not stick
+    msg.header.stamp.nanosec += 999_999
+    got = to_sample(serialize_message(msg))
+    assert got.valid is False and got.stamp_ms == _sample(InsOut).stamp_ms
 
 
 # ----------------------------------------------------------------------------- status

@@ -364,6 +364,29 @@ class Shell:
                                                             self.guard(on_message), qos)
         return box
 
+    def record_inbox(self, msg_type, topic: str, qos, decode: Callable[[bytes], Any]) -> list:
+        """Like :meth:`inbox`, but the subscription takes the serialised bytes
+        (``raw=True``) and the list receives ``decode(bytes)`` — a record of
+        :mod:`vega_bus.records` (:func:`vega_bus.cdr.decoder`): no message object is built
+        (docs/SIL_SPEED.md). A message ``decode`` refuses (``ValueError``, e.g. a stamp off
+        the millisecond grid) fails the run (:class:`NodeExit` 1, ``<topic>: <why>``)."""
+        box: list = []
+        check = SeqCheck(topic)
+        stream = StreamCheck(self, topic)
+
+        def on_message(data):
+            stream()
+            try:
+                record = decode(data)
+            except ValueError as exc:
+                raise NodeExit(EXIT_RUN_FAILURE, f"{topic}: {exc}") from None
+            check(record.seq)
+            box.append(record)
+
+        stream.subscription = self.node.create_subscription(
+            msg_type, topic, self.guard(on_message), qos, raw=True)
+        return box
+
     def checked_subscription(self, msg_type, topic: str, callback: Callable, qos,
                              raw: bool = False):
         """A subscription whose callback runs only for messages that pass the

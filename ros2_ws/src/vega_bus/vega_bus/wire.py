@@ -1,9 +1,11 @@
 """Records ↔ messages by field name: the one adapter between :mod:`vega_bus.records` and
 the ``vega_msgs`` messages.
 
-The SIL nodes (:mod:`vega_plant.nodes`, :mod:`vega_gnc.controller_node`) and the bags of the
-in-process run (:mod:`vega_bags.simbag`) fill a message from a record with :func:`to_msg` and
-read one into a record with :func:`from_msg`; no other code moves fields between the two.
+The bags of the in-process run (:mod:`vega_bags.simbag`) fill a message from a record with
+:func:`to_msg`, and tools read one into a record with :func:`from_msg`; the SIL nodes
+(:mod:`vega_plant.nodes`, :mod:`vega_gnc.controller_node`) go straight between records and
+serialised bytes with :mod:`vega_bus.cdr`, whose layout follows this module's field rule and
+plan (tests/bus/test_cdr.py: the same bytes as a message filled by :func:`to_msg`).
 
 Field rule (tests/bus/test_wire.py checks it against the rosidl-generated classes):
 

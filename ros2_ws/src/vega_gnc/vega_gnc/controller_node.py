@@ -38,13 +38,13 @@ import time
 
 from vega_core.errors import BadInput, one_line
 
-from vega_bus import qos, topics, wire
-from vega_bus.records import InsOut
+from vega_bus import cdr, qos, topics
+from vega_bus.records import CommandOut, InsOut
 from vega_bus.schedule import RunInfo
 from vega_bus.shell import EXIT_BAD_INPUT, NodeExit, Shell, run_node
-from vega_bus.timing import NS_PER_MS
+from vega_bus.timing import NS_PER_MS, ms_to_stamp
 
-__all__ = ["to_sample", "main"]
+__all__ = ["sample_decoder", "main"]
 
 
 def _ms_floor(sec: int, nanosec: int) -> int:
@@ -52,18 +52,26 @@ def _ms_floor(sec: int, nanosec: int) -> int:
     return int(sec) * 1000 + int(nanosec) // NS_PER_MS
 
 
-def _on_ms(stamp) -> bool:
-    """True if a builtin_interfaces/Time is on a whole millisecond."""
-    return int(stamp.nanosec) % NS_PER_MS == 0
+def sample_decoder():
+    """``CDR bytes → InsOut`` (:func:`vega_bus.cdr.decoder`: no message object is built)
+    with the controller's stamp policy: stamps rounded down to the ms, and a measurement with
+    a stamp (``header.stamp`` or ``sample_stamp``) off the millisecond grid marked invalid —
+    the runtime's input validation, never a node failure."""
+    off_grid = [False]
 
+    def floor_ms(sec: int, nanosec: int) -> int:
+        if nanosec % NS_PER_MS:
+            off_grid[0] = True
+        return _ms_floor(sec, nanosec)
 
-def to_sample(msg) -> InsOut:
-    """An InsMeasurement as an :class:`vega_bus.records.InsOut` (:func:`vega_bus.wire.from_msg`,
-    stamps rounded down to the ms); stamps off the millisecond grid → invalid."""
-    sample = wire.from_msg(InsOut, msg, _ms_floor)
-    if _on_ms(msg.header.stamp) and _on_ms(msg.sample_stamp):
-        return sample
-    return sample._replace(valid=False)
+    decode = cdr.decoder(InsOut, floor_ms)
+
+    def sample(data) -> InsOut:
+        off_grid[0] = False
+        measured = decode(data)
+        return measured._replace(valid=False) if off_grid[0] else measured
+
+    return sample
 
 
 def _resolved(reference_path, setting: str) -> str:
@@ -120,26 +128,26 @@ def _controller(shell: Shell) -> None:
 
     pub = node.create_publisher(TvcCommand, topics.TVC_CMD.name, qos.data_qos())
     diag_pub = node.create_publisher(StepDiagnostics, topics.DIAGNOSTICS.name, qos.data_qos())
-    queue = shell.inbox(InsMeasurement, topics.INS.name, qos.data_qos())
+    queue = shell.record_inbox(InsMeasurement, topics.INS.name, qos.data_qos(),
+                               sample_decoder())
+    encode = cdr.encoder(CommandOut)
     recorded = shell.recorder_progress(participants)
     shell.barrier(participants, [pub, diag_pub], barrier_timeout)
 
-    out = TvcCommand()
     diag = StepDiagnostics()
     diag.header.frame_id = node.get_name()
     clock = time.perf_counter
     for k in range(info.n_frames):
         shell.wait_until(lambda: bool(queue), lambda: f"{topics.INS.name} seq {k}")
-        m = to_sample(queue.pop(0))
+        m = queue.pop(0)
         t0 = clock()
         cmd = ctrl.step(m)
         elapsed = clock() - t0
         if cmd is None:
             continue
-        wire.to_msg(cmd, out)
-        pub.publish(out)
-        diag.header.stamp = out.header.stamp
-        diag.seq = out.seq
+        pub.publish(encode(cmd))
+        diag.header.stamp.sec, diag.header.stamp.nanosec = ms_to_stamp(cmd.stamp_ms)
+        diag.seq = cmd.seq
         diag.compute_time_s = elapsed
         diag_pub.publish(diag)
     shell.finish([pub, diag_pub], recorded, info.n_frames + 1)

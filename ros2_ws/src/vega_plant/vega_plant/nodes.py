@@ -1,9 +1,9 @@
 """The truth-side SIL nodes: ``plant``, ``ins_sensor``, ``tvc_actuator`` (thin ROS shells).
 
 Each node builds its step object exactly as the in-process simulation does
-(:mod:`vega_sim.assembly`) and only moves its records to and from the messages
-(:mod:`vega_bus.wire`, by field name) on the topics of :mod:`vega_bus.topics`, in the lockstep
-of :mod:`vega_bus.schedule`:
+(:mod:`vega_sim.assembly`) and only moves its records to and from the messages (serialised
+directly by :mod:`vega_bus.cdr`, with :mod:`vega_bus.wire`'s field rule) on the topics of
+:mod:`vega_bus.topics`, in the lockstep of :mod:`vega_bus.schedule`:
 
 * ``plant`` (time master): publishes the run description on ``/vega/run``, waits for the start
   barrier, then for k = 0 … n: truth(t_k) on ``/vega/truth`` (and /clock = t_k on the frames
@@ -30,8 +30,8 @@ import time
 
 from vega_core.errors import BadInput, one_line
 
-from vega_bus import qos, topics, wire
-from vega_bus.records import ActuatorOut, CommandOut, TruthOut
+from vega_bus import cdr, qos, topics
+from vega_bus.records import ActuatorOut, CommandOut, InsOut, TruthOut
 from vega_bus.schedule import RECORDER_WINDOW_FRAMES
 from vega_bus.shell import (EXIT_BAD_INPUT, EXIT_RUN_FAILURE, NodeExit, SeqCheck, Shell,
                             run_node)
@@ -52,15 +52,6 @@ def load_run(shell: Shell):
 
 def _stamp(header_stamp, t_ms: int) -> None:
     header_stamp.sec, header_stamp.nanosec = ms_to_stamp(t_ms)
-
-
-def _record(record_type, msg, topic: str):
-    """The record a received message carries (:func:`vega_bus.wire.from_msg`);
-    :class:`NodeExit` (1) on a stamp off the millisecond grid."""
-    try:
-        return wire.from_msg(record_type, msg)
-    except ValueError as exc:
-        raise NodeExit(EXIT_RUN_FAILURE, f"{topic}: {exc}") from None
 
 
 def _expect_stamp(topic: str, got_ms: int, want_ms: int) -> None:
@@ -87,7 +78,9 @@ def _plant(shell: Shell) -> None:
     run_pub.publish(String(data=info.to_json()))
     truth_pub = node.create_publisher(VehicleState, topics.TRUTH.name, qos.data_qos())
     clock_pub = node.create_publisher(Clock, topics.CLOCK.name, qos.clock_qos())
-    frames = shell.inbox(ActuatorState, topics.ACTUATOR.name, qos.data_qos())
+    frames = shell.record_inbox(ActuatorState, topics.ACTUATOR.name, qos.data_qos(),
+                                cdr.decoder(ActuatorOut))
+    encode = cdr.encoder(TruthOut, "base_link")
     recorded = shell.recorder_progress(participants)   # back-pressure (vega_bus.schedule)
     barrier = shell.open_barrier(participants, [truth_pub, clock_pub])
     try:
@@ -97,8 +90,7 @@ def _plant(shell: Shell) -> None:
     shell.barrier(participants, [truth_pub, clock_pub], barrier_timeout, opened=barrier)
     startup_s = _process_age_s()
 
-    msg, clock = VehicleState(), Clock()
-    msg.header.frame_id = "base_link"
+    clock = Clock()
     n, frame_ms = info.n_frames, info.timing.frame_ms
     ticks = set(info.clock_frames())
     wall0 = time.monotonic()
@@ -108,7 +100,7 @@ def _plant(shell: Shell) -> None:
                              lambda: f"{topics.RECORDED.name}: the recorder reported "
                                      f"{recorded.count} of {k} frames")
         t = plant.output()
-        truth_pub.publish(wire.to_msg(t, msg))
+        truth_pub.publish(encode(t))
         if k in ticks:
             _stamp(clock.clock, t.stamp_ms)
             clock_pub.publish(clock)
@@ -116,7 +108,7 @@ def _plant(shell: Shell) -> None:
             break
         shell.wait_until(lambda: bool(frames),
                          lambda: f"{topics.ACTUATOR.name} frame {k} (seq {k})")
-        act = _record(ActuatorOut, frames.pop(0), topics.ACTUATOR.name)
+        act = frames.pop(0)
         _expect_stamp(topics.ACTUATOR.name, act.stamp_ms, t.stamp_ms + frame_ms)
         plant.advance(act.deflection_samples_rad, act.rate_samples_radps)
         if realtime:
@@ -162,7 +154,8 @@ def _ins(shell: Shell) -> None:
     participants, barrier_timeout = shell.common_params()
     # entities first, the set-up below while discovery runs
     pub = node.create_publisher(InsMeasurement, topics.INS.name, qos.data_qos())
-    truths = shell.inbox(VehicleState, topics.TRUTH.name, qos.data_qos())
+    truths = shell.record_inbox(VehicleState, topics.TRUTH.name, qos.data_qos(),
+                                cdr.decoder(TruthOut))
     recorded = shell.recorder_progress(participants)
     barrier = shell.open_barrier(participants, [pub])
     ins = make_ins(scenario, seed=seed)
@@ -175,13 +168,12 @@ def _ins(shell: Shell) -> None:
                                 dt_ms=t.physics_dt_ms, deviations=scenario.deviations).at_ms
     shell.barrier(participants, [pub], barrier_timeout, opened=barrier)
 
-    out = InsMeasurement()
-    out.header.frame_id = "base_link"
+    encode = cdr.encoder(InsOut, "base_link")
     for k in range(info.n_frames):
         shell.wait_until(lambda: bool(truths), lambda: f"{topics.TRUTH.name} seq {k}")
-        truth = _record(TruthOut, truths.pop(0), topics.TRUTH.name)
+        truth = truths.pop(0)
         _expect_stamp(topics.TRUTH.name, truth.stamp_ms, info.frame_start(k))
-        pub.publish(wire.to_msg(ins.sample(truth, params_at(truth.stamp_ms)), out))
+        pub.publish(encode(ins.sample(truth, params_at(truth.stamp_ms))))
     shell.finish([pub], recorded, info.n_frames + 1)
 
 
@@ -205,9 +197,14 @@ def _actuator(shell: Shell) -> None:
     seq = SeqCheck(topics.TVC_CMD.name)
     received = [0]
 
-    def on_command(msg):
-        seq(msg.seq)
-        cmd = _record(CommandOut, msg, topics.TVC_CMD.name)
+    decode = cdr.decoder(CommandOut)
+
+    def on_command(data):
+        try:
+            cmd = decode(data)
+        except ValueError as exc:
+            raise NodeExit(EXIT_RUN_FAILURE, f"{topics.TVC_CMD.name}: {exc}") from None
+        seq(cmd.seq)
         if cmd.stamp_ms + lat < act.t_ms:
             raise NodeExit(EXIT_RUN_FAILURE,
                            f"{topics.TVC_CMD.name}: command seq {cmd.seq} applies at "
@@ -216,16 +213,17 @@ def _actuator(shell: Shell) -> None:
         act.receive(cmd)
         received[0] += 1
 
-    shell.checked_subscription(TvcCommand, topics.TVC_CMD.name, on_command, qos.data_qos())
+    shell.checked_subscription(TvcCommand, topics.TVC_CMD.name, on_command, qos.data_qos(),
+                               raw=True)
     recorded = shell.recorder_progress(participants)
     shell.barrier(participants, [pub], barrier_timeout)
 
-    out = ActuatorState()
+    encode = cdr.encoder(ActuatorOut)
     for k in range(info.n_frames):
         need = info.commands_needed(k)
         shell.wait_until(lambda: received[0] >= need,
                          lambda: f"{topics.TVC_CMD.name} seq {need - 1} (frame {k})")
-        pub.publish(wire.to_msg(act.advance(info.frame_start(k)), out))
+        pub.publish(encode(act.advance(info.frame_start(k))))
     shell.finish([pub], recorded, info.n_frames + 1)
 
 
