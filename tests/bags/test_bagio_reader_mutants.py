@@ -585,3 +585,79 @@ def test_topics_without_messages_have_empty_columns_of_the_right_shapes(tmp_path
     assert set(cmd.columns) == {"stamp_ns", "sample_stamp_ns", "seq", "deflection_cmd_rad",
                                 "scheduling_velocity_mps", "status"}
     assert cmd["status"].dtype == np.int64 and cmd["sample_stamp_ns"].dtype == np.int64
+
+
+def test_layouts_it_cannot_compute_are_refused():
+    """Arrays of strings or of messages have no fixed layout: cdr_offsets (and so the fast
+    column reader, which then falls back to the deserialiser) refuses them with _NotFlat."""
+    store = bagio.vega_typestore()
+    joint = store.types["sensor_msgs/msg/JointState"]
+    header = store.types["std_msgs/msg/Header"]
+    time = store.types["builtin_interfaces/msg/Time"]
+    msg = joint(header=header(stamp=time(sec=1, nanosec=2), frame_id="j"), name=["a", "b"],
+                position=np.zeros(2), velocity=np.zeros(0), effort=np.zeros(0))
+    data = bytes(store.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
+    with pytest.raises(bagio._NotFlat, match="name"):
+        bagio.cdr_offsets("sensor_msgs/msg/JointState", data)
+    array = store.types["diagnostic_msgs/msg/DiagnosticArray"](
+        header=header(stamp=time(sec=1, nanosec=2), frame_id=""), status=[])
+    data = bytes(store.serialize_cdr(array, "diagnostic_msgs/msg/DiagnosticArray"))
+    with pytest.raises(bagio._NotFlat, match="status"):
+        bagio.cdr_offsets("diagnostic_msgs/msg/DiagnosticArray", data)
+
+
+def test_the_fast_reader_itself_reads_the_samples():
+    """_fast_columns on its own (read_run_bag falls back to the deserialiser whenever it
+    gives up, which hides a fast reader that gives up on good input): three messages of each
+    type with seq 0, 1, 2 and the sample's other values, read to the documented columns."""
+    store = bagio.vega_typestore()
+    for name in msg_samples.TYPE_NAMES:
+        sample = msg_samples.SAMPLES[name]
+        raw = [_raw(name, seq=k) for k in range(3)]
+        cols, counts = bagio._fast_columns(store, f"vega_msgs/msg/{name}", raw)
+        stamp = sample["header"]["stamp"]
+        assert cols.pop("stamp_ns").tolist() == [stamp["sec"] * 10**9 + stamp["nanosec"]] * 3
+        for field, value in sample.items():
+            if field == "header":
+                continue
+            if field == "sample_stamp":
+                got = cols.pop("sample_stamp_ns")
+                assert got.dtype == np.int64
+                assert got.tolist() == [value["sec"] * 10**9 + value["nanosec"]] * 3
+                continue
+            got = cols.pop(field)
+            if field == "seq":
+                assert got.dtype == np.int64 and got.tolist() == [0, 1, 2]
+            elif isinstance(value, bool):
+                assert got.dtype == bool and got.tolist() == [value] * 3
+            elif isinstance(value, int):
+                assert got.dtype == np.int64 and got.tolist() == [value] * 3, field
+            elif isinstance(value, float):
+                assert got.dtype == np.float64 and got.tolist() == [value] * 3, field
+            elif field in counts:                       # sequence: flattened, with counts
+                assert got.dtype == np.float64 and got.tolist() == value * 3, field
+                assert counts.pop(field).tolist() == [len(value)] * 3
+            else:                                       # fixed array: (N, k)
+                assert got.dtype == np.float64 and got.tolist() == [value] * 3, field
+        assert cols == {} and counts == {}, name
+
+
+def test_a_sequence_after_an_empty_one_is_aligned_from_its_length(tmp_path):
+    """deflection_samples_rad empty: the rate samples' length ends at payload 56, a multiple
+    of 8, so their float64s start right there (not 8 bytes on)."""
+    rates = [0.25, -0.5, 0.75]
+    data = _raw("ActuatorState", deflection_samples_rad=[], rate_samples_radps=rates,
+                accel_samples_radps2=[])
+    # frame_id "nozzle": seq -> 24; float64s -> 28, 36, 44; lengths @48, 52 (-> 52, 56);
+    # rate data payload 56..80 (data 60); accel length @80 -> 84; sample_period_s @88 -> 92
+    assert bagio.cdr_offsets(topics.ACTUATOR.type_name, data) == {
+        **ACTUATOR_OFFSETS, "rate_samples_radps": 56, "accel_samples_radps2": 84,
+        "sample_period_s": 92}
+    assert list(struct.unpack_from("<3d", data, 60)) == rates
+    assert struct.unpack_from("<d", data, 92) == (0.001,)
+    assert len(data) >= 100         # the message ends at 100; rclpy's buffer may run on
+    cols, counts = bagio._fast_columns(bagio.vega_typestore(), topics.ACTUATOR.type_name,
+                                       [data, data])
+    assert cols["rate_samples_radps"].tolist() == rates * 2
+    assert counts["deflection_samples_rad"].tolist() == [0, 0]
+    assert cols["sample_period_s"].tolist() == [0.001, 0.001]
