@@ -22,7 +22,7 @@ plant) and times, from the moment the command is started, the lines it writes on
 
 With ``--baseline REV`` (e.g. the commit before a change; repeat it for a ladder of
 revisions) the same runs are made with the packages this benchmark is about (vega_bus,
-vega_plant, vega_bags, vega_bringup, vega_cli) of that revision — extracted with ``git
+vega_plant, vega_gnc, vega_bags, vega_bringup, vega_cli) of that revision — extracted with ``git
 archive`` into a temporary directory and put first on PYTHONPATH for the command and its
 nodes — alternating with the working tree's, run by run, so that all see the same load; the
 medians and the ratios of each revision's median to the working tree's are printed per
@@ -47,7 +47,7 @@ from io import BytesIO
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGES = ("vega_bus", "vega_plant", "vega_bags", "vega_bringup", "vega_cli")
+PACKAGES = ("vega_bus", "vega_plant", "vega_gnc", "vega_bags", "vega_bringup", "vega_cli")
 PHASES = ("validate", "barrier", "flight", "report", "exit", "total", "cpu")
 _MARKS = (("validate", "vega sil: scenario "), ("barrier", "start barrier complete"),
           ("flight", "vega sil: flew "), ("report", "vega sil: report "))

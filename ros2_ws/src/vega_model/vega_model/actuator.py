@@ -14,6 +14,7 @@ All numbers come from the ``actuator`` section of the vehicle data file.
 
 from __future__ import annotations
 
+import cmath
 import math
 from dataclasses import dataclass
 
@@ -106,6 +107,34 @@ def linear_actuator_ss(params: ActuatorParams):
     return A, B, C, D
 
 
+def zoh_transition(params: ActuatorParams) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Φ = e^{A·dt} of the unlimited actuator (:func:`linear_actuator_ss`) in closed form, as
+    rows (Φ₁₁, Φ₁₂), (Φ₂₁, Φ₂₂).
+
+    With σ = ζω and ω_d = ω·√(1 − ζ²) (imaginary when ζ > 1, where sin and cos turn into
+    sinh and cosh), s(t) = sin(ω_d t)/ω_d (→ t as ω_d → 0, ζ = 1):
+
+        Φ = e^{−σt} [[cos ω_d t + σ s,  s], [−ω² s,  cos ω_d t − σ s]].
+
+    (Any 2×2 matrix exponential: e^{At} = e^{tr(A)t/2}·(cosh(μt)·I + sinh(μt)/μ·(A − tr(A)/2·I)),
+    μ² = tr(A)²/4 − det A; here tr A = −2σ, det A = ω², μ = iω_d.) Closed form rather than
+    ``scipy.linalg.expm``: the actuator node would import scipy.linalg only for this
+    (≈ 0.2 s of its start-up, docs/SIL_SPEED.md); tests/model compares it with expm."""
+    w, t = params.wn_radps, params.dt_s
+    sigma = params.zeta * w
+    wd = cmath.sqrt(complex(w * w - sigma * sigma))
+    x = wd * t
+    # sin(x)/x for small |x| by its series: exact to rounding below 1e-4 (next term x⁴/120)
+    sinc = (cmath.sin(x) / x if abs(x) > 1e-4 else 1.0 - x * x / 6.0) * t
+    cos = cmath.cos(x)
+    decay = math.exp(-sigma * t)
+    p11 = decay * (cos + sigma * sinc)
+    p12 = decay * sinc
+    p21 = -decay * w * w * sinc
+    p22 = decay * (cos - sigma * sinc)
+    return (p11.real, p12.real), (p21.real, p22.real)
+
+
 class TvcActuator:
     """Nonlinear discrete-time TVC actuator stepped at ``params.dt_s``.
 
@@ -114,7 +143,10 @@ class TvcActuator:
     Limiter law, one step from (β_k, β̇_k) with held command u (applied in this order):
 
     1. Linear step, exact for the unlimited law β̈ = ω²(u − β) − 2ζωβ̇:
-       (β', β̇') = Φ (β_k, β̇_k) + Γ u with Φ = e^{A dt}, Γ = ∫₀^dt e^{Aτ} dτ B.
+       (β', β̇') = Φ (β_k, β̇_k) + Γ u with Φ = e^{A dt}, Γ = ∫₀^dt e^{Aτ} dτ B — computed
+       as (β', β̇') = (u, 0) + Φ (β_k − u, β̇_k), the same since Γ = (I − Φ)(1, 0) (the held
+       command is the equilibrium β = u, β̇ = 0), and exact at rest: a nozzle at rest where
+       it is commanded stays there to the last bit (Φ: :func:`zoh_transition`).
     2. Rate limit R: if |β̇'| > R then β̇' ← sign(β̇')·R and the position follows the
        limited rate, β' ← β_k + dt·(β̇_k + β̇')/2 (trapezoid). In every case the step is
        then bounded, β' ← β_k + clip(β' − β_k, −R·dt, R·dt) (this acts only when the
@@ -135,20 +167,8 @@ class TvcActuator:
 
     def __init__(self, params: ActuatorParams, beta0_rad: float = 0.0):
         self.params = params
-        A, B, _, _ = linear_actuator_ss(params)
         dt = params.dt_s
-        # exact ZOH: expm([[A, B], [0, 0]] dt) = [[Φ, Γ], [0, I]]; scipy imported here, not at
-        # module level: the plant, INS and recorder processes import this module but build no
-        # actuator, and scipy.linalg costs them ≈ 0.2 s of start-up each
-        from scipy.linalg import expm
-
-        aug = np.zeros((3, 3))
-        aug[:2, :2] = A
-        aug[:2, 2:] = B
-        e = expm(aug * dt)
-        self._p11, self._p12 = float(e[0, 0]), float(e[0, 1])
-        self._p21, self._p22 = float(e[1, 0]), float(e[1, 1])
-        self._g1, self._g2 = float(e[0, 2]), float(e[1, 2])
+        (self._p11, self._p12), (self._p21, self._p22) = zoh_transition(params)
         self._w2 = params.wn_radps ** 2
         self._c = 2.0 * params.zeta * params.wn_radps
         self._half_dt = 0.5 * dt
@@ -186,8 +206,9 @@ class TvcActuator:
         else:
             u = self.command_rad
         b0, r0 = self.beta_rad, self.beta_dot_radps
-        b = self._p11 * b0 + self._p12 * r0 + self._g1 * u
-        r = self._p21 * b0 + self._p22 * r0 + self._g2 * u
+        e = b0 - u
+        b = u + self._p11 * e + self._p12 * r0
+        r = self._p21 * e + self._p22 * r0
         rate, pos = self._rate, self._pos
         if r > rate:
             r = rate
@@ -222,8 +243,7 @@ class TvcActuator:
     def run_tuples(self, commands) -> tuple[tuple[float, ...], tuple[float, ...],
                                             tuple[float, ...], tuple[float, ...]]:
         """:meth:`run` with tuples in place of the lists (the actuator node's frame)."""
-        p11, p12, p21, p22, g1, g2 = (self._p11, self._p12, self._p21, self._p22,
-                                      self._g1, self._g2)
+        p11, p12, p21, p22 = self._p11, self._p12, self._p21, self._p22
         rate, pos, half_dt, max_step = self._rate, self._pos, self._half_dt, self._max_step
         w2, c = self._w2, self._c
         isfinite = math.isfinite
@@ -241,8 +261,9 @@ class TvcActuator:
                     held = u
                 else:
                     u = held
-            b = p11 * b0 + p12 * r0 + g1 * u
-            r = p21 * b0 + p22 * r0 + g2 * u
+            e = b0 - u
+            b = u + p11 * e + p12 * r0
+            r = p21 * e + p22 * r0
             if r > rate:
                 r = rate
                 b = b0 + half_dt * (r0 + r)
