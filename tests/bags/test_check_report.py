@@ -83,3 +83,20 @@ def test_plot_labels_fit_their_figures(run, tmp_path):
         for upper, lower in zip(tight, tight[1:]):
             assert lower.y1 <= upper.y0 + 1, (name, upper, lower)
         plt.close(fig)
+
+
+@pytest.mark.parametrize("timeout_s", [30.0, 0.0])
+def test_forked_plots_are_the_serial_plots(run, tmp_path, monkeypatch, timeout_s):
+    """Half of the plots are drawn by a forked child (report._plot): the files are the bytes
+    a single process draws (report._save of all six). With no time for the child (timeout
+    0: it is killed at once), this process draws its half too: the same files."""
+    check = report.check_bag(write_bag(tmp_path / "bag", run))
+    serial, forked = tmp_path / "serial", tmp_path / "forked"
+    serial.mkdir()
+    forked.mkdir()
+    report._save(check, None, serial, list(report.PLOTS))
+    monkeypatch.setattr(report, "PLOT_CHILD_TIMEOUT_S", timeout_s)
+    paths = report._plot(check, None, forked)
+    assert [p.name for p in paths] == list(report.PLOTS)
+    for name in report.PLOTS:
+        assert (forked / name).read_bytes() == (serial / name).read_bytes(), name

@@ -119,21 +119,82 @@ def _fixed_margins(fig, left_in: float = 0.8, right_in: float = 0.2, bottom_in: 
                         top=1.0 - top_in / h, hspace=gap_in / (h / len(fig.axes)))
 
 
-def _plot(check: BagCheck, spec: RequirementSpec | None, out: Path) -> list[Path]:
-    """Write the :data:`PLOTS` into ``out``; return their paths."""
+PLOT_CHILD_TIMEOUT_S = 30.0
+"""How long :func:`_plot` waits for the forked process drawing half of the plots before it
+stops it and draws them itself [s] (assumption: 20× the ≈ 0.3 s they take on a loaded
+machine)."""
+
+
+def _save(check: BagCheck, spec: RequirementSpec | None, out: Path, names) -> None:
     import matplotlib.pyplot as plt
 
-    paths = []
-    for name, fig in _figures(check, spec).items():
-        path = out / name
-        fig.savefig(path, dpi=100)
+    for name, fig in _figures(check, spec, names).items():
+        fig.savefig(out / name, dpi=100)
         plt.close(fig)
-        paths.append(path)
-    return paths
 
 
-def _figures(check: BagCheck, spec: RequirementSpec | None) -> dict:
-    """The :data:`PLOTS` as matplotlib figures (file name → figure), laid out."""
+def _plot(check: BagCheck, spec: RequirementSpec | None, out: Path) -> list[Path]:
+    """Write the :data:`PLOTS` into ``out``; return their paths.
+
+    Drawing is ≈ 80 % of a report's CPU time (matplotlib: ticks, text, Agg; ≈ 0.5 s for the
+    six plots, docs/SIL_SPEED.md), so on POSIX a forked child draws half of them while this
+    process draws the other half: the two cores the nodes used are free by then. A child
+    that fails or takes longer than :data:`PLOT_CHILD_TIMEOUT_S` is stopped and its plots
+    are drawn here (an error then surfaces here, with its traceback)."""
+    names = list(PLOTS)
+    mine, theirs = names[::2], names[1::2]
+    child = _fork_plots(check, spec, out, theirs)
+    _save(check, spec, out, mine if child else names)
+    if child and not _child_done(child):
+        _save(check, spec, out, theirs)
+    return [out / name for name in names]
+
+
+def _fork_plots(check, spec, out: Path, names) -> int | None:
+    """A child process drawing ``names`` (its pid), or None where fork is unavailable."""
+    import os
+    import sys
+
+    if not hasattr(os, "fork"):
+        return None
+    sys.stdout.flush()
+    sys.stderr.flush()
+    pid = os.fork()
+    if pid:
+        return pid
+    status = 1
+    try:
+        _save(check, spec, out, names)
+        status = 0
+    finally:
+        os._exit(status)
+
+
+def _child_done(pid: int) -> bool:
+    """Wait for the plotting child; True if it drew its plots (exit 0) in time."""
+    import os
+    import select
+    import signal
+
+    try:
+        fd = os.pidfd_open(pid)
+    except (AttributeError, OSError):
+        fd = None
+    if fd is not None:
+        try:
+            poller = select.poll()
+            poller.register(fd, select.POLLIN)
+            if not poller.poll(PLOT_CHILD_TIMEOUT_S * 1000):
+                os.kill(pid, signal.SIGKILL)
+        finally:
+            os.close(fd)
+    _, status = os.waitpid(pid, 0)
+    return os.waitstatus_to_exitcode(status) == 0
+
+
+def _figures(check: BagCheck, spec: RequirementSpec | None, names=None) -> dict:
+    """The :data:`PLOTS` (or those of ``names``) as matplotlib figures (file name → figure),
+    laid out."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -148,75 +209,82 @@ def _figures(check: BagCheck, spec: RequirementSpec | None) -> dict:
     title = (f"{check.metadata.get(bagio.META_SCENARIO, '?')}, seed "
              f"{check.metadata.get(bagio.META_SEED, '?')}")
     figs = {}
+    names = set(PLOTS if names is None else names)
 
     def limits(ax, bound, label):
         ax.axhline(bound, color="r", ls="--", lw=0.8, label=label)
         ax.axhline(-bound, color="r", ls="--", lw=0.8)
 
-    fig, ax = plt.subplots(figsize=(8, 4))
-    ax.plot(t, np.degrees(r.theta_rad), label="θ truth")
-    if ti.size:
-        ax.plot(ti, np.degrees(r.ins_theta_rad), lw=0.6, alpha=0.7,
-                label="θ INS (at its stamp)")
-    ax.set_ylabel("θ [deg]")
-    figs["attitude.png"] = fig
+    if "attitude.png" in names:
+        fig, ax = plt.subplots(figsize=(8, 4))
+        ax.plot(t, np.degrees(r.theta_rad), label="θ truth")
+        if ti.size:
+            ax.plot(ti, np.degrees(r.ins_theta_rad), lw=0.6, alpha=0.7,
+                    label="θ INS (at its stamp)")
+        ax.set_ylabel("θ [deg]")
+        figs["attitude.png"] = fig
 
-    fig, (a1, a2) = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
-    a1.plot(t, r.z_m, label="z")
-    limits(a1, spec.drift_m, f"|z| < {spec.drift_m:g} m")
-    a1.set_ylim(-1.2 * spec.drift_m, 1.2 * spec.drift_m)
-    a1.set_ylabel("z [m]")
-    a2.plot(t, r.z_dot_mps, label="ż")
-    limits(a2, spec.drift_rate_mps, f"|ż| < {spec.drift_rate_mps:g} m/s")
-    a2.set_ylim(-1.2 * spec.drift_rate_mps, 1.2 * spec.drift_rate_mps)
-    a2.set_ylabel("ż [m/s]")
-    figs["drift.png"] = fig
+    if "drift.png" in names:
+        fig, (a1, a2) = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
+        a1.plot(t, r.z_m, label="z")
+        limits(a1, spec.drift_m, f"|z| < {spec.drift_m:g} m")
+        a1.set_ylim(-1.2 * spec.drift_m, 1.2 * spec.drift_m)
+        a1.set_ylabel("z [m]")
+        a2.plot(t, r.z_dot_mps, label="ż")
+        limits(a2, spec.drift_rate_mps, f"|ż| < {spec.drift_rate_mps:g} m/s")
+        a2.set_ylim(-1.2 * spec.drift_rate_mps, 1.2 * spec.drift_rate_mps)
+        a2.set_ylabel("ż [m/s]")
+        figs["drift.png"] = fig
 
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 7))
-    kpa_deg = 180.0 / math.pi / 1000.0  # Pa·rad → kPa·deg
-    mach = np.linspace(0.0, max(float(np.nanmax(r.mach)) if r.mach.size else 1.0, 0.1), 400)
-    env = spec.envelope(mach) * kpa_deg
-    a1.plot(r.mach, r.q_alpha_pa_rad * kpa_deg, lw=0.8, label="Qα")
-    a1.plot(mach, env, "r--", lw=0.8, label="envelope (config/requirements.yaml)")
-    a1.plot(mach, -env, "r--", lw=0.8)
-    if spec.objective_mach is not None:
-        obj = spec.objective(mach) * kpa_deg
-        a1.plot(mach, obj, ":", color="0.5", lw=0.8,
-                label="3°·Q objective (Eq. 4.24, informational)")
-        a1.plot(mach, -obj, ":", color="0.5", lw=0.8)
-    a1.set_xlabel("Mach [-]")
-    a1.set_ylabel("Qα [kPa·deg]")
-    a2.plot(t, r.q_alpha_pa_rad * kpa_deg, lw=0.8, label="Qα")
-    a2.plot(t, spec.envelope(r.mach) * kpa_deg, "r--", lw=0.8, label="envelope(Mach(t))")
-    a2.plot(t, -spec.envelope(r.mach) * kpa_deg, "r--", lw=0.8)
-    a2.set_ylabel("Qα [kPa·deg]")
-    figs["q_alpha.png"] = fig
+    if "q_alpha.png" in names:
+        fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 7))
+        kpa_deg = 180.0 / math.pi / 1000.0  # Pa·rad → kPa·deg
+        mach = np.linspace(0.0, max(float(np.nanmax(r.mach)) if r.mach.size else 1.0, 0.1), 400)
+        env = spec.envelope(mach) * kpa_deg
+        a1.plot(r.mach, r.q_alpha_pa_rad * kpa_deg, lw=0.8, label="Qα")
+        a1.plot(mach, env, "r--", lw=0.8, label="envelope (config/requirements.yaml)")
+        a1.plot(mach, -env, "r--", lw=0.8)
+        if spec.objective_mach is not None:
+            obj = spec.objective(mach) * kpa_deg
+            a1.plot(mach, obj, ":", color="0.5", lw=0.8,
+                    label="3°·Q objective (Eq. 4.24, informational)")
+            a1.plot(mach, -obj, ":", color="0.5", lw=0.8)
+        a1.set_xlabel("Mach [-]")
+        a1.set_ylabel("Qα [kPa·deg]")
+        a2.plot(t, r.q_alpha_pa_rad * kpa_deg, lw=0.8, label="Qα")
+        a2.plot(t, spec.envelope(r.mach) * kpa_deg, "r--", lw=0.8, label="envelope(Mach(t))")
+        a2.plot(t, -spec.envelope(r.mach) * kpa_deg, "r--", lw=0.8)
+        a2.set_ylabel("Qα [kPa·deg]")
+        figs["q_alpha.png"] = fig
 
-    fig, ax = plt.subplots(figsize=(8, 4))
-    ax.plot(ta, np.degrees(r.beta_rad), lw=0.8, label="β actuator")
-    if tc.size:
-        ax.step(tc, np.degrees(r.cmd_rad), where="post", lw=0.6, alpha=0.8,
-                label="β command (at its stamp)")
-    limits(ax, math.degrees(spec.deflection_rad),
-           f"|β| < {math.degrees(spec.deflection_rad):g}°")
-    ax.set_ylabel("β [deg]")
-    figs["nozzle.png"] = fig
+    if "nozzle.png" in names:
+        fig, ax = plt.subplots(figsize=(8, 4))
+        ax.plot(ta, np.degrees(r.beta_rad), lw=0.8, label="β actuator")
+        if tc.size:
+            ax.step(tc, np.degrees(r.cmd_rad), where="post", lw=0.6, alpha=0.8,
+                    label="β command (at its stamp)")
+        limits(ax, math.degrees(spec.deflection_rad),
+               f"|β| < {math.degrees(spec.deflection_rad):g}°")
+        ax.set_ylabel("β [deg]")
+        figs["nozzle.png"] = fig
 
-    fig, ax = plt.subplots(figsize=(8, 4))
-    ax.plot(t, r.v_mps, label="v truth")
-    if ti.size:
-        ax.plot(ti, r.ins_v_mps, lw=0.6, label="v INS")
-    if tc.size:
-        ax.step(tc, r.cmd_v_mps, where="post", lw=0.8, label="scheduling velocity (command)")
-    ax.set_ylabel("v [m/s]")
-    figs["schedule.png"] = fig
+    if "schedule.png" in names:
+        fig, ax = plt.subplots(figsize=(8, 4))
+        ax.plot(t, r.v_mps, label="v truth")
+        if ti.size:
+            ax.plot(ti, r.ins_v_mps, lw=0.6, label="v INS")
+        if tc.size:
+            ax.step(tc, r.cmd_v_mps, where="post", lw=0.8, label="scheduling velocity (command)")
+        ax.set_ylabel("v [m/s]")
+        figs["schedule.png"] = fig
 
-    fig, ax = plt.subplots(figsize=(8, 3.5))
-    if tc.size:
-        ax.step(tc, r.cmd_status, where="post", label="TvcCommand.status")
-    ax.set_yticks(list(STATUS_NAMES), list(STATUS_NAMES.values()))
-    ax.set_ylim(min(STATUS_NAMES) - 0.5, max(STATUS_NAMES) + 0.5)
-    figs["status.png"] = fig
+    if "status.png" in names:
+        fig, ax = plt.subplots(figsize=(8, 3.5))
+        if tc.size:
+            ax.step(tc, r.cmd_status, where="post", label="TvcCommand.status")
+        ax.set_yticks(list(STATUS_NAMES), list(STATUS_NAMES.values()))
+        ax.set_ylim(min(STATUS_NAMES) - 0.5, max(STATUS_NAMES) + 0.5)
+        figs["status.png"] = fig
 
     for name, fig in figs.items():
         for ax in fig.axes:
