@@ -7,6 +7,7 @@
 #   make mc      the default Monte Carlo campaign: 852 dispersed flights of `nominal` on a Dask
 #                LocalCluster into bags/mc-<UTC time>/ (sets up first; MC_ARGS=..., e.g. --runs 100)
 #   make mutation  mutmut over the core modules, one at a time (MODULE=name: one; docs/TESTING.md)
+#   make soak    the whole suite ROUNDS times (10) with COPIES copies (2) at once (tools/soak.py)
 #   make clean   remove the workspace build products and caches; `make distclean` also .venv
 #
 # Every step is incremental: a second `make setup` with nothing changed does nothing.
@@ -126,6 +127,14 @@ mutation: setup
 	cd $(ROOT) && OPENBLAS_NUM_THREADS=1 $(VENV)/bin/vega-env python tools/mutation/run.py \
 	  $(if $(MODULE),--module $(MODULE))
 	$(if $(MODULE),,cd $(ROOT) && $(VENV)/bin/vega-env python tools/mutation/seeded_bugs.py)
+
+# Flake check of issue 15: ROUNDS rounds, each COPIES copies of the whole suite at once; one line
+# per round, log build/soak.jsonl; exit 1 when a round failed (docs/TESTING.md)
+ROUNDS ?= 10
+COPIES ?= 2
+.PHONY: soak
+soak: setup
+	cd $(ROOT) && $(VENV)/bin/vega-env python tools/soak.py --rounds $(ROUNDS) --copies $(COPIES)
 
 clean:
 	rm -rf $(WS)/build $(WS)/install $(WS)/log $(ROOT)/.pytest_cache $(ROOT)/.ruff_cache
