@@ -228,6 +228,10 @@ def test_a_flipped_byte_in_the_data_section_is_refused(tmp_path):
                                f"section CRC {stored:08x} stored, {computed:08x} computed)")
     with pytest.raises(bagio.BagError, match="data section CRC"):
         bagio.check_section_crcs(tmp_path / "bag")
+    # a stray file without a footer, sorted first, is passed over: the bag's file is checked
+    (tmp_path / "bag" / "0_stray.mcap").write_bytes(MAGIC + b"no footer here")
+    with pytest.raises(bagio.BagError, match=f"{mcap.name}: data section CRC"):
+        bagio.check_section_crcs(tmp_path / "bag")
 
 
 def test_a_flipped_byte_in_the_summary_is_refused(tmp_path):
