@@ -39,8 +39,9 @@ from offline_synthesis.margins import (
     sampled_data_model, sampled_data_response,
 )
 
-__all__ = ["INPUT_NAMES", "PARAMETERS", "DesignSet", "controller_ss", "design_set",
-           "evaluate", "tune_point", "DESIGN_MARGIN"]
+__all__ = ["INPUT_NAMES", "PARAMETERS", "RELIEF_PARAMETERS", "DesignSet", "controller_ss",
+           "design_set", "evaluate", "tune_point", "DESIGN_MARGIN", "with_load",
+           "wind_alpha_gain"]
 
 INPUT_NAMES = ("theta_ins_rad", "theta_dot_ins_radps", "z_ins_m", "z_dot_ins_mps")
 SIGN = 1.0
@@ -65,6 +66,43 @@ PARAMETERS = (
 )
 LOWER = np.array([p[1] for p in PARAMETERS])
 UPPER = np.array([p[2] for p in PARAMETERS])
+
+RELIEF_PARAMETERS = (
+    ("k_acc_mrad_per_mps2", -50.0, 50.0),   # load-relief gain k_a [mrad/(m/s²)]
+    ("log10_tau_acc_s", -1.0, 0.7),         # its filter time constant 0.1 … 5 s
+)
+"""Optional load relief (issue 9 item 3; docs/FLIGHT_DESIGN.md §7), appended to a parameter
+vector of :data:`PARAMETERS`: the lateral acceleration, derived inside the controller from the
+INS drift rate as a filtered derivative k_a·s/(τs + 1)·ż, added to the feedback sum before the
+filters. Below 1/τ it is k_a·z̈; z̈ carries the normal force −N_α·α/m (docs/MODEL.md §3), the
+classical load-relief measurement (the table keeps the four INS inputs). A vector of
+len(PARAMETERS) has no relief (the controller of every table made before, order 8); with
+these two more the order is 9 and k_a = 0 gives the same input-output map (the filter state
+is then unobservable). Box (assumption): |k_a| ≤ 50 mrad/(m/s²) is ≈ 0.4 × the attitude
+weight (k_θ·m/N_α ≈ 0.12 rad/(m/s²) at max-Q), beyond the 0.05 that broke the margins
+untuned (§7)."""
+RELIEF_OFF = (0.0, 0.0)
+"""The relief parameters of a grid point without relief: k_a = 0, τ = 1 s."""
+
+
+def bounds_for(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Search box (lower, upper) of a parameter vector of length ``n``: :data:`PARAMETERS`,
+    or those followed by :data:`RELIEF_PARAMETERS`."""
+    if n == len(PARAMETERS):
+        return LOWER, UPPER
+    if n == len(PARAMETERS) + len(RELIEF_PARAMETERS):
+        return (np.concatenate([LOWER, [p[1] for p in RELIEF_PARAMETERS]]),
+                np.concatenate([UPPER, [p[2] for p in RELIEF_PARAMETERS]]))
+    raise ValueError(f"a structured parameter vector has {len(PARAMETERS)} or "
+                     f"{len(PARAMETERS) + len(RELIEF_PARAMETERS)} entries, not {n}")
+
+
+def with_relief(x, k_acc_mrad_per_mps2: float = 0.0, log10_tau_s: float = 0.0) -> np.ndarray:
+    """Parameter vector ``x`` (without relief) extended by the relief parameters."""
+    x = np.asarray(x, dtype=float)
+    if x.size != len(PARAMETERS):
+        raise ValueError(f"with_relief: expected {len(PARAMETERS)} parameters, got {x.size}")
+    return np.concatenate([x, [k_acc_mrad_per_mps2, log10_tau_s]])
 
 UNSTABLE_EPS = 1e-6
 """A loop is unstable with an eigenvalue |z| > 1 + 1e-6 (as
@@ -108,7 +146,15 @@ def controller_ss(x, omega_modes: Sequence[float]):
                 lowpass(10.0 ** x[12], x[13])):
         chain = cascade(chain, sec)
     A, B, C, D = chain
-    return A, B @ gains, C, D @ gains
+    if x.size == len(PARAMETERS):
+        return A, B @ gains, C, D @ gains
+    bounds_for(x.size)                                   # a length check
+    # load relief: k_a·s/(τs + 1)·ż added to the sum = state x_a' = (ż − x_a)/τ,
+    # output (k_a/τ)(ż − x_a)
+    k_a, tau = x[14] * 1e-3, 10.0 ** x[15]
+    pre = (np.array([[-1.0 / tau]]), np.array([[0.0, 0.0, 0.0, 1.0 / tau]]),
+           np.array([[-k_a / tau]]), gains + np.array([[0.0, 0.0, 0.0, k_a / tau]]))
+    return cascade(pre, chain)
 
 
 # ------------------------------------------------------------------------------ plants
@@ -130,6 +176,9 @@ class DesignSet:
     rigid_mask: np.ndarray = field(default=None)   # (plants, w): ω < 0.8 ω₁ of the plant
     band_masks: np.ndarray = field(default=None)   # (plants, w): in a bending band
     templates: tuple = field(default=None)         # closed-loop templates (built on first use)
+    load: tuple = field(default=None)              # wind → α of the nominal plant (with_load)
+    load_weight: float = 0.0                       # weight of the load objective in the cost
+    load_metric: str = "peak"                      # its figure (LOAD_METRICS)
 
 
 def design_grid(omega_modes, dt_s: float) -> np.ndarray:
@@ -224,6 +273,90 @@ def design_set(context, t_s: float, uset) -> DesignSet:
                   & (w[None, :] <= BAND[1] * modes_arr[:, i:i + 1]))
     return DesignSet(float(t_s), dt_s, tuple(p0.omega_radps), w, labels, families, modes,
                      np.array(Gd), models, Cs, rigid, bands)
+
+
+LOAD_BAND_RADPS = (0.02, 1.0)
+"""The load objective's band [rad/s] (assumption): below the rigid crossover (≈ 2 rad/s at
+max-Q), where the wind differs from the guidance's design wind — a profile stronger or shifted
+in altitude passes in 3–30 s at 300–600 m/s of climb. Measured on the shipped table: the wind →
+α gain peaks at 0.3–0.4 rad/s (V·|α/v_w| ≈ 1.8 at 40 s, 1 for a vehicle holding its attitude)."""
+LOAD_N_FREQ = 30
+
+
+def load_model(context, t_s: float, w_radps=None) -> tuple:
+    """Controller-independent parts of the nominal plant's wind → α response at ``t_s`` on the
+    load band (:data:`LOAD_BAND_RADPS`, log-spaced, :data:`LOAD_N_FREQ`): the frequencies, the
+    z of the controller period, and per frequency the responses of the four INS measurements
+    and of V·α to the nozzle command (through zero-order hold and delay, H = e^{−jωτ}·(1 −
+    e^{−jωT})/(jωT): the sampled-data loop at |ω| ≪ π/T) and to the wind v_w (docs/MODEL.md
+    §3: α = Qα/Q = θ − dθ̇/V + (ż − v_w)/V). V·α/v_w is dimensionless: −1 for a vehicle that
+    holds its attitude and does not drift, 0 for one that turns fully into the wind."""
+    from vega_model.actuator import linear_actuator_ss
+    from vega_model.dynamics import OUTPUTS, linear_model
+
+    p, act, tau = corner_plant(context, float(t_s), {})
+    dt_s = 1.0 / float(context.vehicle["controller.rate_hz"])
+    Ap, Bp, Cp, Dp = linear_model(p)
+    Aa, Ba, Ca, Da = linear_actuator_ss(act)
+    sel = Ca[[0, 2]], Da[[0, 2]]
+    A = np.block([[Ap, Bp[:, :2] @ sel[0]], [np.zeros((Aa.shape[0], Ap.shape[0])), Aa]])
+    B = np.concatenate([(Bp[:, :2] @ sel[1]).ravel(), Ba.ravel()])
+    Bw = np.concatenate([Bp[:, 2], np.zeros(Aa.shape[0])])
+    rows = [OUTPUTS.index(name) for name in INPUT_NAMES]
+    C = np.hstack([Cp[rows], Dp[rows][:, :2] @ sel[0]])
+    qa = OUTPUTS.index("q_alpha_pa_rad")
+    scale = p.v_mps / p.q_pa                           # Qα [Pa·rad] → V·α [m/s]
+    c_a = np.concatenate([Cp[qa], Dp[qa, :2] @ sel[0]]) * scale
+    d_aw = Dp[qa, 2] * scale
+    w = (np.geomspace(*LOAD_BAND_RADPS, LOAD_N_FREQ) if w_radps is None
+         else np.asarray(w_radps, dtype=float))
+    hold = np.exp(-1j * w * tau) * (1.0 - np.exp(-1j * w * dt_s)) / (1j * w * dt_s)
+    n = A.shape[0]
+    R = np.linalg.inv(1j * w[:, None, None] * np.eye(n) - A)          # (w, n, n)
+    Gu = np.einsum("ij,wjk,k->wi", C, R, B) * hold[:, None]            # (w, 4)
+    Gw = np.einsum("ij,wjk,k->wi", C, R, Bw)
+    au = np.einsum("j,wjk,k->w", c_a, R, B) * hold
+    aw = np.einsum("j,wjk,k->w", c_a, R, Bw) + d_aw
+    return w, np.exp(1j * w * dt_s), Gu, Gw, au, aw
+
+
+def wind_alpha_response(K, load) -> np.ndarray:
+    """V·α/v_w of the nominal closed loop with the discrete controller K on the load band
+    (:func:`load_model`): u = SIGN·K·y, y = G_u u + G_w v_w, α from both."""
+    _, z, Gu, Gw, au, aw = load
+    Kr = _discrete_response(*K, z)                                     # (w, 4)
+    u = SIGN * np.einsum("wi,wi->w", Kr, Gw) / (1.0 - SIGN * np.einsum("wi,wi->w", Kr, Gu))
+    return au * u + aw
+
+
+LOAD_METRICS = ("peak", "mean")
+"""The load figure of :func:`wind_alpha_gain`: the peak of V·|α/v_w| over the load band, or its
+mean over the band's log-spaced frequencies. Measured (docs/FLIGHT_DESIGN.md §7): tuned on the
+peak, the window 14–32 s lowered it by 3–20 % but raised the gain at 0.04–0.1 rad/s (at 16 s
+0.32 → 0.98 at 0.08 rad/s) and the Monte Carlo Qα failures did not go down; the mean counts
+the whole band."""
+
+
+def wind_alpha_gain(K, load, metric: str = "peak") -> float:
+    """The load figure: the peak (or the mean, :data:`LOAD_METRICS`) over the load band of
+    V·|α/v_w| (:func:`wind_alpha_response`)."""
+    mag = np.abs(wind_alpha_response(K, load))
+    if metric == "peak":
+        return float(mag.max())
+    if metric == "mean":
+        return float(mag.mean())
+    raise ValueError(f"load metric {metric!r}: one of {LOAD_METRICS}")
+
+
+def with_load(ds: "DesignSet", context, weight: float, metric: str = "peak") -> "DesignSet":
+    """``ds`` with the load objective: ``weight`` × :func:`wind_alpha_gain` (``metric``) added
+    to the cost of :func:`evaluate_discrete` (0: the cost of every table made before)."""
+    if metric not in LOAD_METRICS:
+        raise ValueError(f"load metric {metric!r}: one of {LOAD_METRICS}")
+    ds.load = load_model(context, ds.t_s)
+    ds.load_weight = float(weight)
+    ds.load_metric = metric
+    return ds
 
 
 # ---------------------------------------------------------------------------- evaluation
@@ -360,9 +493,18 @@ def evaluate_discrete(K, ds: DesignSet, detail: bool = False):
     w_c = nom["w_pm_radps"] if math.isfinite(nom.get("w_pm_radps", float("nan"))) else 0.1
     cost = (pen - min(worst_rigid, 0.5) - 0.5 * min(float(rigid_sm[0]), 0.6)
             - 0.05 * math.log(max(w_c, 1e-3)))
+    load = {}
+    if ds.load is not None:
+        # the load objective (with_load): the nominal loop's peak wind → α gain, only where
+        # the loop is stable (an unstable loop's frequency response means nothing)
+        stable = radius[0] <= 1.0 + UNSTABLE_EPS
+        gain = wind_alpha_gain(K, ds.load, ds.load_metric) if stable else 10.0
+        cost += ds.load_weight * gain
+        load = {"wind_alpha_gain": gain,
+                "wind_alpha_peak": wind_alpha_gain(K, ds.load) if stable else 10.0}
     if not detail:
         return cost
-    return cost, {"penalty": pen, "penalty_terms": terms, "n_unstable": n_unstable,
+    return cost, {**load, "penalty": pen, "penalty_terms": terms, "n_unstable": n_unstable,
                   "max_radius": float(radius.max()),
                   "pm_deg": nom["pm_deg"], "gm_low_db": nom["gm_low_db"],
                   "gm_high_db": nom["gm_high_db"], "w_c_radps": w_c,
@@ -387,6 +529,8 @@ def _search(fun, args, x0, seed, maxiter, popsize, polish_maxfev, callback=None)
     initial population when given), then a Nelder–Mead polish; the better point, clipped."""
     from scipy.optimize import differential_evolution, minimize
 
+    # the box of x0's length: PARAMETERS, or with the relief parameters appended
+    LOWER, UPPER = bounds_for(len(PARAMETERS) if x0 is None else np.asarray(x0).size)
     bounds = list(zip(LOWER, UPPER))
     init = "latinhypercube"
     if x0 is not None:
@@ -1015,8 +1159,12 @@ def write_structured_table(path, design: StructuredDesign, context):
         "output_name": "beta_cmd_rad",
         "units": {"input": ["rad", "rad/s", "m", "m/s"], "output": "rad", "grid": "m/s"},
         "structure": ("u = LP1*N1*N2*LP2 * (k_theta*theta + k_thetadot*thetadot + k_z*z + "
-                      "k_zdot*zdot) (offline_synthesis.structured)"),
-        "weights": {"parameters": [p[0] for p in PARAMETERS],
+                      "k_zdot*zdot) (offline_synthesis.structured)") + (
+                          " + LP1*N1*N2*LP2 * k_acc*s/(tau_acc*s + 1)*zdot (load relief)"
+                          if np.shape(design.x)[1] > len(PARAMETERS) else ""),
+        "weights": {"parameters": [p[0] for p in PARAMETERS] + (
+                        [p[0] for p in RELIEF_PARAMETERS]
+                        if np.shape(design.x)[1] > len(PARAMETERS) else []),
                     "requirements": REQUIREMENTS, "design_margin": DESIGN_MARGIN},
         "solver": {"method": "scipy differential_evolution + Nelder-Mead",
                    "scipy": scipy.__version__, **design.tuning},
