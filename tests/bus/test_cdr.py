@@ -119,6 +119,9 @@ def test_decoder_rejects_what_is_not_the_layout():
         decode(good[:-1])
     with pytest.raises(ValueError):
         decode(good + b"\x00" * 8)
+    for cut in (0, 4, 10, 13, 40):       # truncated anywhere, before or after a length
+        with pytest.raises(ValueError):
+            decode(good[:cut] if cut >= 2 else b"")
     with pytest.raises(ValueError, match="little-endian"):
         decode(b"\x00\x00" + good[2:])
 

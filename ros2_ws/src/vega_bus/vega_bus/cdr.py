@@ -120,6 +120,8 @@ def _lengths(leaves, data) -> tuple[int, ...]:
     for _path, kind, _code, size, n in leaves:
         if kind in (_STRING, _SEQUENCE):
             offset += -(offset - 4) % 4
+            if offset + 4 > len(data):
+                raise ValueError(f"{len(data)} bytes: too short for the message's layout")
             (count,) = struct.unpack_from("<I", data, offset)
             offset += 4
             lengths.append(count)
