@@ -235,7 +235,7 @@ def _recorder(shell: Shell) -> None:
     progress.publish(final)
     deadline = time.monotonic() + shell.stall_timeout_s
     while progress.get_subscription_count() > 0 and time.monotonic() < deadline:
-        shell.spin_once(0.05)
+        shell.spin_once(0.01)   # a graph change does not wake the wait: poll (the run waits)
 
 
 def _writer_callback(reorder: Reorder, name: str, type_name: str, counts: dict, progress=None):
