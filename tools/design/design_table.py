@@ -49,3 +49,15 @@ def write_design(out: Path, context, uset, times, xs, anchors_s, tuning):
               "tuning": design.tuning, "per_grid_time": design.details}
     out.with_suffix(".json").write_text(json.dumps(json_ready(report), indent=1) + "\n")
     return design
+
+
+def structured_grid_point(path, time_s: float):
+    """(metadata, grid times [s], index of ``time_s``) of a structured design table; exits with
+    one line when the file is not one or has no grid point at ``time_s``."""
+    meta = json.loads(str(np.load(path)["metadata"]))
+    if meta.get("design") != "structured":
+        raise SystemExit(f"{path}: not a structured design table")
+    times = [float(t) for t in meta["grid_times_s"]]
+    if time_s not in times:
+        raise SystemExit(f"{path}: no grid point at {time_s:g} s")
+    return meta, times, times.index(time_s)

@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from design_table import structured_grid_point
 
 
 def tune_fixed_gain(ds, base, k_acc: float, seed: int, maxiter: int, popsize: int):
@@ -186,13 +187,8 @@ def main(argv=None) -> int:
         return 0
     if args.table is None or args.time is None:
         parser.error("TABLE and TIME are required (unless --plot)")
-    meta = json.loads(str(np.load(args.table)["metadata"]))
-    if meta.get("design") != "structured":
-        raise SystemExit(f"{args.table}: not a structured design table")
-    times = [float(t) for t in meta["grid_times_s"]]
-    if args.time not in times:
-        raise SystemExit(f"{args.table}: no grid point at {args.time:g} s")
-    x_table = np.asarray(meta["parameters_per_grid_time"][times.index(args.time)], dtype=float)
+    meta, times, index = structured_grid_point(args.table, args.time)
+    x_table = np.asarray(meta["parameters_per_grid_time"][index], dtype=float)
     base = S.with_relief(x_table, *S.RELIEF_OFF) if x_table.size == len(S.PARAMETERS) else x_table
     context = default_context()
     uset = UncertaintySet.from_vehicle(context.vehicle)

@@ -23,12 +23,11 @@ Usage: OPENBLAS_NUM_THREADS=1 .venv/bin/vega-env python tools/design/set_paramet
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
-from design_table import misses_check, write_design
+from design_table import misses_check, structured_grid_point, write_design
 
 
 def main(argv=None) -> int:
@@ -44,12 +43,7 @@ def main(argv=None) -> int:
     parser.add_argument("value", type=float)
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args(argv)
-    meta = json.loads(str(np.load(args.table)["metadata"]))
-    if meta.get("design") != "structured":
-        raise SystemExit(f"{args.table}: not a structured design table")
-    times = [float(t) for t in meta["grid_times_s"]]
-    if args.time not in times:
-        raise SystemExit(f"{args.table}: no grid point at {args.time:g} s")
+    meta, times, _ = structured_grid_point(args.table, args.time)
     i = [p[0] for p in S.PARAMETERS].index(args.name)
     if not S.LOWER[i] <= args.value <= S.UPPER[i]:
         raise SystemExit(f"{args.name} {args.value:g} leaves its range "
