@@ -46,7 +46,7 @@ __all__ = ["RawFields", "Reorder", "main"]
 # RECORDER_WINDOW_FRAMES ahead of it): it sleeps this long after each wake-up, so that one
 # wake-up drains ≈ 10 ms of traffic (≈ 40 messages at 1000 frames/s) instead of one message.
 # Measured on the 100 s flight (A/B, load 4.5-5): recorder CPU 2.4 → 1.55 s, flight 17 → 18.5×.
-# 10 ms is ≈ 10-20 frames of the 100-frame window and ≈ 2 % of the DDS history depth.
+# 10 ms is ≈ 10-30 frames of the 60-frame window and ≈ 3 % of the DDS history depth.
 RECORDER_BATCH_S = 0.01
 
 _TIME = struct.Struct("<iI")

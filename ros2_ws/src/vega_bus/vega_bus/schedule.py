@@ -43,9 +43,13 @@ __all__ = ["RunInfo", "RECORDER_REPORT_FRAMES", "RECORDER_WINDOW_FRAMES", "CLOCK
 # messages in flight towards the recorder (≈ 4.5 per frame) well inside the publishers'
 # KEEP_LAST history (DATA_QUEUE_DEPTH = 1000 per topic; beyond it a writer drops samples the
 # recorder has not acknowledged) and inside the 512 descriptors of a Fast DDS shared-memory
-# port, whatever the load of the machine.
+# port, whatever the load of the machine: at most (window + report interval) frames are not
+# yet reported, (60 + 20) × 4.5 ≈ 360 messages. The window was 100 frames until 2026-11-27,
+# (100 + 20) × 4.5 ≈ 540 — over the 512: once the nodes had become faster (vega_bus.cdr), a
+# CI run lost /vega/ins samples 443–864 towards a descheduled recorder, which refused the
+# gap (StreamCheck: "publication sequence number 865, expected 443").
 RECORDER_REPORT_FRAMES = 20
-RECORDER_WINDOW_FRAMES = 100
+RECORDER_WINDOW_FRAMES = 60
 
 # /clock is for tools (sim time for plots, rqt, replays), not for the lockstep, which runs on
 # the stamps: a tick every 10 frames (100 ms at the default 10 ms frame, 10 Hz) and one at
