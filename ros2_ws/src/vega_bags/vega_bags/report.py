@@ -144,8 +144,11 @@ def _plot(check: BagCheck, spec: RequirementSpec | None, out: Path) -> list[Path
     names = list(PLOTS)
     mine, theirs = names[::2], names[1::2]
     child = _fork_plots(check, spec, out, theirs)
-    _save(check, spec, out, mine if child else names)
-    if child and not _child_done(child):
+    try:
+        _save(check, spec, out, mine if child else names)
+    finally:
+        done = _child_done(child) if child else True   # reaped even when this half failed
+    if not done:
         _save(check, spec, out, theirs)
     return [out / name for name in names]
 
