@@ -50,7 +50,8 @@ from vega_bus import network, parameters
 
 __all__ = ["EXIT_OK", "EXIT_RUN_FAILURE", "EXIT_BAD_INPUT", "DUMP_STACKS_SIGNAL",
            "TEARDOWN_WATCHDOG_SIGNAL", "NodeExit",
-           "Stopped", "StopFlag", "Shell", "RecorderProgress", "run_node", "SeqCheck"]
+           "Stopped", "StopFlag", "Shell", "RecorderProgress", "run_node", "SeqCheck",
+           "decoded"]
 
 EXIT_OK = 0
 EXIT_RUN_FAILURE = 1
@@ -189,6 +190,15 @@ class StreamCheck:
                            f"{number}, expected {expected}: not the stream of the run's "
                            f"publisher (a foreign or restarted publisher)")
         self.taken = expected
+
+
+def decoded(decode: Callable[[bytes], Any], data, topic: str):
+    """``decode(data)``; a message it refuses (``ValueError``, e.g. a stamp off the millisecond
+    grid or bytes of another layout) fails the run: :class:`NodeExit` (1) ``<topic>: <why>``."""
+    try:
+        return decode(data)
+    except ValueError as exc:
+        raise NodeExit(EXIT_RUN_FAILURE, f"{topic}: {exc}") from None
 
 
 class StopFlag:
@@ -347,39 +357,20 @@ class Shell:
                 text = what() if callable(what) else what
                 raise NodeExit(EXIT_RUN_FAILURE, f"{failure}: waited {limit:g} s for {text}")
 
-    def inbox(self, msg_type, topic: str, qos) -> list:
-        """Subscribe to ``topic``; return the list its messages are appended to, in arrival
-        order, after the stream check (:class:`StreamCheck`: one publisher, its publication
-        order) and the sequence check (:class:`SeqCheck`; a gap fails the run)."""
-        box: list = []
-        check = SeqCheck(topic)
-        stream = StreamCheck(self, topic)
-
-        def on_message(msg):
-            stream()
-            check(msg.seq)
-            box.append(msg)
-
-        stream.subscription = self.node.create_subscription(msg_type, topic,
-                                                            self.guard(on_message), qos)
-        return box
-
     def record_inbox(self, msg_type, topic: str, qos, decode: Callable[[bytes], Any]) -> list:
-        """Like :meth:`inbox`, but the subscription takes the serialised bytes
-        (``raw=True``) and the list receives ``decode(bytes)`` — a record of
-        :mod:`vega_bus.records` (:func:`vega_bus.cdr.decoder`): no message object is built
-        (docs/SIL_SPEED.md). A message ``decode`` refuses (``ValueError``, e.g. a stamp off
-        the millisecond grid) fails the run (:class:`NodeExit` 1, ``<topic>: <why>``)."""
+        """Subscribe to ``topic`` taking the serialised bytes (``raw=True``); return the list
+        that receives ``decode(bytes)`` — a record of :mod:`vega_bus.records`
+        (:func:`vega_bus.cdr.decoder`: no message object is built, docs/SIL_SPEED.md) — in
+        arrival order, after the stream check (:class:`StreamCheck`: one publisher, its
+        publication order) and the sequence check (:class:`SeqCheck`; a gap fails the run).
+        A message ``decode`` refuses fails the run (:func:`decoded`)."""
         box: list = []
         check = SeqCheck(topic)
         stream = StreamCheck(self, topic)
 
         def on_message(data):
             stream()
-            try:
-                record = decode(data)
-            except ValueError as exc:
-                raise NodeExit(EXIT_RUN_FAILURE, f"{topic}: {exc}") from None
+            record = decoded(decode, data, topic)
             check(record.seq)
             box.append(record)
 

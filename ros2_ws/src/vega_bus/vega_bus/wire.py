@@ -2,7 +2,8 @@
 the ``vega_msgs`` messages.
 
 The bags of the in-process run (:mod:`vega_bags.simbag`) fill a message from a record with
-:func:`to_msg`, and tools read one into a record with :func:`from_msg`; the SIL nodes
+:func:`to_msg`; :func:`from_msg` reads one back (the reference tests/bus holds
+:mod:`vega_bus.cdr` against); the SIL nodes
 (:mod:`vega_plant.nodes`, :mod:`vega_gnc.controller_node`) go straight between records and
 serialised bytes with :mod:`vega_bus.cdr`, whose layout follows this module's field rule and
 plan (tests/bus/test_cdr.py: the same bytes as a message filled by :func:`to_msg`).

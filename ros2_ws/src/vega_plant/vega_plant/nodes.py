@@ -34,7 +34,7 @@ from vega_bus import cdr, qos, topics
 from vega_bus.records import ActuatorOut, CommandOut, InsOut, TruthOut
 from vega_bus.schedule import RECORDER_WINDOW_FRAMES
 from vega_bus.shell import (EXIT_BAD_INPUT, EXIT_RUN_FAILURE, NodeExit, SeqCheck, Shell,
-                            run_node)
+                            decoded, run_node)
 from vega_bus.timing import ms_to_stamp
 from vega_sim.run import load_run as run_of
 
@@ -200,10 +200,7 @@ def _actuator(shell: Shell) -> None:
     decode = cdr.decoder(CommandOut)
 
     def on_command(data):
-        try:
-            cmd = decode(data)
-        except ValueError as exc:
-            raise NodeExit(EXIT_RUN_FAILURE, f"{topics.TVC_CMD.name}: {exc}") from None
+        cmd = decoded(decode, data, topics.TVC_CMD.name)
         seq(cmd.seq)
         if cmd.stamp_ms + lat < act.t_ms:
             raise NodeExit(EXIT_RUN_FAILURE,
