@@ -33,6 +33,7 @@ unexport ROS_LOCALHOST_ONLY ROS_STATIC_PEERS
 REQUIREMENTS_STAMP := $(VENV)/.stamp-requirements
 OFFLINE_STAMP := $(VENV)/.stamp-offline-synthesis
 WS_STAMP := $(WS)/install/.stamp-build
+KERNELS_STAMP := $(WS)/install/.stamp-kernels
 BUILD_LOG := $(WS)/log/make-colcon-build.log
 WRAPPERS := $(VENV)/bin/vega $(VENV)/bin/vega-env
 
@@ -51,7 +52,7 @@ COLCON_FLAGS := --symlink-install \
 help:
 	@sed -n '2,13s/^# \{0,1\}//p' $(firstword $(MAKEFILE_LIST))
 
-setup: $(REQUIREMENTS_STAMP) $(WS_STAMP) $(OFFLINE_STAMP) $(WRAPPERS)
+setup: $(REQUIREMENTS_STAMP) $(WS_STAMP) $(OFFLINE_STAMP) $(WRAPPERS) $(KERNELS_STAMP)
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -68,6 +69,15 @@ $(WS_STAMP): $(REQUIREMENTS_STAMP) $(WS_SOURCES)
 	@# The venv is an ament prefix but not a colcon one: colcon's warning about that is expected.
 	@grep -E '^(Finished|Failed)|WARNING' $(BUILD_LOG) \
 	  | grep -v "doesn't contain any 'local_setup" || true
+	@touch $@
+
+# The plant's numba kernels compiled ahead of time (vega_model/kernels.py: the plant node then
+# starts without numba; the file name carries the sources' digest, so an edited kernel falls
+# back to numba's JIT until this runs again)
+KERNEL_SOURCES := $(addprefix $(WS)/src/vega_model/vega_model/,kernels.py nonlinear_kernel.py \
+  wind_kernel.py)
+$(KERNELS_STAMP): $(WS_STAMP) $(KERNEL_SOURCES) | $(WRAPPERS)
+	@$(VENV)/bin/vega-env python -m vega_model.kernels
 	@touch $@
 
 # (re-installed once offline_synthesis/__init__.py appears: the editable finder then maps a

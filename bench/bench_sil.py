@@ -21,12 +21,14 @@ plant) and times, from the moment the command is started, the lines it writes on
   between identical runs), and on two cores a lower bound of twice the wall time.
 
 With ``--baseline REV`` (e.g. the commit before a change; repeat it for a ladder of
-revisions) the same runs are made with the packages this benchmark is about (vega_bus,
-vega_plant, vega_gnc, vega_bags, vega_bringup, vega_cli) of that revision — extracted with ``git
-archive`` into a temporary directory and put first on PYTHONPATH for the command and its
-nodes — alternating with the working tree's, run by run, so that all see the same load; the
+revisions) the same runs are made with the packages this benchmark is about (vega_model,
+vega_sim, vega_bus, vega_plant, vega_gnc, vega_bags, vega_bringup, vega_cli) of that revision
+— extracted with ``git archive`` into a temporary directory and put first on PYTHONPATH for the
+command and its nodes — alternating with the working tree's, run by run, so that all see the same load; the
 medians and the ratios of each revision's median to the working tree's are printed per
-phase. (The other packages, the messages and numba's cache are shared.) The command runs
+phase. (The other packages and the messages are shared; a revision's numba cache is built
+by its warm-up run, and for a revision with ``vega_model/kernels.py`` its ahead-of-time kernels
+are compiled into the extracted tree first, as ``make setup`` does.) The command runs
 as ``python -m vega_cli.cli`` in both cases: the ``vega`` wrapper's own start (``source
 tools/env.bash``, ≈ 0.1–0.3 s) is not in the phases; it is timed on its own at the end and
 added to the current tree's median for the whole command as a user types it. The load
@@ -49,7 +51,8 @@ from io import BytesIO
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGES = ("vega_bus", "vega_plant", "vega_gnc", "vega_bags", "vega_bringup", "vega_cli")
+PACKAGES = ("vega_model", "vega_sim", "vega_bus", "vega_plant", "vega_gnc", "vega_bags",
+            "vega_bringup", "vega_cli")
 PHASES = ("validate", "barrier", "flight", "report", "exit", "total", "cpu")
 _MARKS = (("validate", "vega sil: scenario "), ("barrier", "start barrier complete"),
           ("flight", "vega sil: flew "), ("report", "vega sil: report "))
@@ -62,7 +65,13 @@ def _baseline_tree(rev: str, scratch: Path) -> list[str]:
                           capture_output=True, check=True).stdout
     with tarfile.open(fileobj=BytesIO(data)) as tar:
         tar.extractall(scratch, filter="data")
-    return [str(scratch / "ros2_ws" / "src" / name) for name in PACKAGES]
+    paths = [str(scratch / "ros2_ws" / "src" / name) for name in PACKAGES]
+    if (scratch / "ros2_ws/src/vega_model/vega_model/kernels.py").is_file():
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+            [*paths, os.environ.get("PYTHONPATH", "")]))
+        subprocess.run([sys.executable, "-m", "vega_model.kernels"], env=env, check=True,
+                       stdout=subprocess.DEVNULL)
+    return paths
 
 
 def _run(args, table, out, run_id, pythonpath):

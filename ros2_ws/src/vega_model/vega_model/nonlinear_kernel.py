@@ -22,9 +22,11 @@ random states and inputs, and tests/sim/test_closed_loop.py checks the whole run
 
 Compiled on first use and cached on disk next to this file (``cache=True``, ``__pycache__``):
 the first process after a change compiles for ≈ 1.5 s; a process that finds the cache pays
-≈ 0.15 s of CPU for ``import numba`` and ≈ 0.2 s to load it (measured 2026-11-27; only the
-plant imports this module, at the first nonlinear :class:`vega_sim.plant_step.PlantStep`).
-See docs/MONTE_CARLO.md §8 "Speed".
+≈ 0.15 s of CPU for ``import numba`` and ≈ 0.2 s to load it (measured 2026-11-27). The plant
+normally runs the same function compiled ahead of time by ``make setup`` instead
+(:mod:`vega_model.kernels`, no numba in the process); this JIT function is the fallback and
+the reference the tests hold the ahead-of-time one to. The kernel's inputs are built by
+:mod:`vega_model.kernel_inputs` (re-exported here). See docs/MONTE_CARLO.md §8 "Speed".
 """
 
 from __future__ import annotations
@@ -32,49 +34,10 @@ from __future__ import annotations
 import math
 
 import numba
-import numpy as np
 
-from vega_model.parameters import ModelParameters
+from vega_model.kernel_inputs import CONSTANTS, MachTables, entry_constants, mach_tables
 
 __all__ = ["CONSTANTS", "entry_constants", "MachTables", "mach_tables", "rk4_frame"]
-
-CONSTANTS = ("v", "a", "s_ref", "half_rho", "d", "T", "m", "J", "lc", "tp0", "tp1", "rp0",
-             "rp1", "neg_mn_ln", "neg_t", "lc_t", "jn", "jn_rp0", "jn_rp1", "mode1_q",
-             "mode1_qd", "mode2_q", "mode2_qd", "k_cf")
-"""Columns of :func:`entry_constants`: the per-parameter-set products of
-:class:`vega_model.dynamics.NonlinearModel` (same names)."""
-
-
-def entry_constants(p: ModelParameters) -> tuple[float, ...]:
-    """The model constants of one parameter set, in :data:`CONSTANTS` order, formed with the
-    operations :class:`vega_model.dynamics.NonlinearModel` uses."""
-    T, m, J = p.thrust_n, p.mass_kg, p.jyy_kgm2
-    lc, d = p.l_cg_pvp_m, p.l_cp_m
-    mn, ln, jn = p.nozzle_mass_kg, p.nozzle_lever_m, p.nozzle_inertia_kgm2
-    tp0, tp1 = p.psi_t_pvp
-    rp0, rp1 = p.psi_r_pvp
-    w1, w2 = p.omega_radps
-    return (p.v_mps, p.sound_speed_mps, p.s_ref_m2, 0.5 * p.rho_kgpm3, d, T, m, J, lc,
-            tp0, tp1, rp0, rp1, -mn * ln, -T, lc * T, jn, jn * rp0, jn * rp1,
-            -w1 * w1, 2.0 * p.zeta * w1, -w2 * w2, 2.0 * p.zeta * w2,
-            p.aero.crossflow_coefficient)
-
-
-class MachTables(tuple):
-    """(C_Nα breakpoints, values, slopes, C_A breakpoints, values, slopes) as float arrays."""
-
-
-def mach_tables(p: ModelParameters) -> MachTables:
-    """The aerodynamic Mach tables of ``p`` as the kernel reads them (the breakpoints, values
-    and slopes of :meth:`vega_model.aero.Aerodynamics.scalar_tables`)."""
-    out = []
-    for table in p.aero.scalar_tables():
-        # the table's own floats (ScalarTable's slots): the same breakpoints and slopes
-        x, y, slopes = table._x, table._y, table._slopes
-        out += [np.array(x, dtype=float), np.array(y, dtype=float),
-                np.array(slopes if slopes else [0.0], dtype=float)]
-    return MachTables(out)
-
 
 _jit = numba.njit(cache=True, nogil=True)
 

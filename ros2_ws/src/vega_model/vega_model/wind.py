@@ -376,7 +376,9 @@ class DrydenTurbulence:
         """:meth:`entry_steps` as an array, the recursion compiled
         (:func:`vega_model.wind_kernel.dryden_entries`): the same numbers, and the generator
         left where :meth:`entry_steps` leaves it."""
-        from vega_model.wind_kernel import dryden_entries
+        from vega_model.kernels import compiled
+
+        dryden_entries = compiled().dryden_entries
 
         sigma, a, b = (np.asarray(c, dtype=float) for c in coefficients)
         n = sigma.size * int(steps_per_entry)

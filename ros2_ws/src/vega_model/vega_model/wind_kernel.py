@@ -7,9 +7,10 @@ parameter entry. In plain Python a step costs ≈ 0.1–0.2 µs (≈ 15–25 ms 
 Python's order, no ``fastmath`` (LLVM neither reassociates nor fuses them into an FMA), as in
 :mod:`vega_model.nonlinear_kernel`. tests/model/test_wind.py compares it with the Python code.
 
-Imported only by :meth:`vega_model.wind.WindModel.entry_steps` (the plant's wind), so that the
-nodes without a plant do not import numba. Compiled on first use and cached on disk next to this
-file (``cache=True``).
+Imported only through :mod:`vega_model.kernels` (the plant's wind, :meth:`vega_model.wind.
+WindModel.entry_steps`), which loads the ahead-of-time compiled twin that ``make setup`` builds
+and falls back to this function; so the nodes without a plant never import numba. Compiled on
+first use and cached on disk next to this file (``cache=True``).
 """
 
 from __future__ import annotations

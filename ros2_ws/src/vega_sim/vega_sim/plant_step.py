@@ -246,7 +246,7 @@ class ParameterTrack:
         """(constants of every entry, Mach tables) for the compiled nonlinear plant
         (:func:`vega_model.nonlinear_kernel.rk4_frame`; built once, then shared)."""
         if self._kernel is None:
-            from vega_model.nonlinear_kernel import entry_constants, mach_tables
+            from vega_model.kernel_inputs import entry_constants, mach_tables
 
             if self._columns:
                 consts = _entry_constants_of_columns(self._columns, self.params[0])
@@ -520,12 +520,13 @@ class PlantStep:
         self._seq = 0
         self._linear = track.linear_frames() if model == "linear" else None
         if self._linear is None:
-            # compiled RK4 frame, bit-identical to NonlinearModel.rk4_step (imported here:
-            # numba costs the other nodes' start-up nothing)
-            from vega_model.nonlinear_kernel import rk4_frame
+            # compiled RK4 frame, bit-identical to NonlinearModel.rk4_step (ahead-of-time
+            # compiled when built, vega_model.kernels; imported here: nothing for the other
+            # nodes' start-up)
+            from vega_model.kernels import compiled
 
             consts, tables = track.kernel_inputs()
-            self._rk4_frame, self._kernel_args = rk4_frame, (consts, *tables)
+            self._rk4_frame, self._kernel_args = compiled().rk4_frame, (consts, *tables)
         self._winds, self._wind_array = self._draw_winds()
         self._out = self._truth()
 
