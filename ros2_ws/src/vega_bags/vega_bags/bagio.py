@@ -129,13 +129,47 @@ def _writer_class():
             self.channel_stats[connection.id] = 0
             write_channel(self.chunk.bio, self.channels[-1], self.schemas)
 
+        def write(self, connection, timestamp: int, data) -> None:
+            # rosbags' McapWriter.write, the same bytes (a Message record: opcode 0x05, length,
+            # channel id u16, sequence u32 = 0, log time u64, publish time u64 = log time, data)
+            # in one struct.pack instead of a BytesIO per message: ≈ 5 → 2 µs (the recorder
+            # writes ≈ 41 000 messages a flight)
+            if timestamp < self.message_start_time:
+                self.message_start_time = timestamp
+            if timestamp > self.message_end_time:
+                self.message_end_time = timestamp
+            cid = connection.id
+            self.channel_stats[cid] += 1
+            chunk = self.chunk
+            if timestamp < chunk.message_start_time:
+                chunk.message_start_time = timestamp
+            if timestamp > chunk.message_end_time:
+                chunk.message_end_time = timestamp
+            bio = chunk.bio
+            chunk.msgs[cid].append((timestamp, bio.tell()))
+            bio.write(_MESSAGE_HEAD.pack(0x05, 22 + len(data), cid, 0, timestamp, timestamp))
+            bio.write(data)
+            if bio.tell() > 2**20:
+                self.close_chunk()
+
     class _Writer(Writer):
         STORAGE_PLUGINS = {**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: _McapWriter}
+
+        def write(self, connection, timestamp: int, data) -> None:
+            # rosbags' Writer.write without its per-message checks (RunBagWriter.write makes
+            # them: the bag open, the topic one of its connections; no per-message compression)
+            self.storage.write(connection, timestamp, data)
+            self.counts[connection.id] += 1
+            if timestamp < self.min_timestamp:
+                self.min_timestamp = timestamp
+            if timestamp > self.max_timestamp:
+                self.max_timestamp = timestamp
 
     return _Writer
 
 
 _MAGIC = b"\x89MCAP0\r\n"
+_MESSAGE_HEAD = struct.Struct("<BQHIQQ")   # opcode 0x05, length, channel, sequence, times
 _FOOTER = struct.Struct("<BQQQI")      # opcode 0x02, length 20, summary_start, offset_start, crc
 _DATA_END = struct.Struct("<BQI")      # opcode 0x0F, length 4, data_section_crc
 
