@@ -25,8 +25,8 @@ revisions) the same runs are made with the packages this benchmark is about (veg
 vega_sim, vega_bus, vega_plant, vega_gnc, vega_bags, vega_bringup, vega_cli) of that revision
 — extracted with ``git archive`` into a temporary directory and put first on PYTHONPATH for the
 command and its nodes — alternating with the working tree's, run by run, so that all see the
-same load; the medians and the ratios of each revision's median to the working tree's are printed per
-phase. (The other packages and the messages are shared; a revision's numba cache is built
+same load; the medians and the ratios of each revision's median to the working tree's are
+printed per phase. (The other packages and the messages are shared; a revision's numba cache is built
 by its warm-up run, and for a revision with ``vega_model/kernels.py`` its ahead-of-time kernels
 are compiled into the extracted tree first, as ``make setup`` does.) The command runs
 as ``python -m vega_cli.cli`` in both cases: the ``vega`` wrapper's own start (``source
