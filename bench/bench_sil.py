@@ -20,21 +20,20 @@ plant) and times, from the moment the command is started, the lines it writes on
   wall times (on the shared 2-core machine at load 10–15 a flight's wall time varied 4.5–12 s
   between identical runs), and on two cores a lower bound of twice the wall time.
 
-With ``--baseline REV`` (e.g. the commit before a change; repeat it for a ladder of
-revisions) the same runs are made with the packages this benchmark is about (vega_model,
-vega_sim, vega_bus, vega_plant, vega_gnc, vega_bags, vega_bringup, vega_cli) of that revision
-— extracted with ``git archive`` into a temporary directory and put first on PYTHONPATH for the
-command and its nodes — alternating with the working tree's, run by run, so that all see the
-same load; the medians and the ratios of each revision's median to the working tree's are
-printed per phase. (The other packages and the messages are shared; a revision's numba cache is built
-by its warm-up run, and for a revision with ``vega_model/kernels.py`` its ahead-of-time kernels
-are compiled into the extracted tree first, as ``make setup`` does.) The command runs
-as ``python -m vega_cli.cli`` in both cases: the ``vega`` wrapper's own start (``source
-tools/env.bash``, ≈ 0.1–0.3 s) is not in the phases; it is timed on its own at the end and
-added to the current tree's median for the whole command as a user types it. The load
-average is printed before and after. Without ``--table`` the installed
-``tvc_controller.npz`` (the default table) is flown. The run directories go to a temporary
-directory that is removed afterwards.
+With ``--baseline REV`` (e.g. the commit before a change; repeat it for a ladder of revisions)
+the same runs are made with the packages this benchmark is about (vega_model, vega_sim,
+vega_bus, vega_plant, vega_gnc, vega_bags, vega_bringup, vega_cli) of that revision — extracted
+with ``git archive`` into a temporary directory and put first on PYTHONPATH for the command and
+its nodes — alternating with the working tree's, run by run, so that all see the same load; the
+medians and the ratios of each revision's median to the working tree's are printed per phase.
+(The other packages and the messages are shared; a revision's numba cache is built by its
+warm-up run, and for a revision with ``vega_model/kernels.py`` its ahead-of-time kernels are
+compiled into the extracted tree first, as ``make setup`` does.) The command runs as ``python -m
+vega_cli.cli`` in both cases: the ``vega`` wrapper's own start (``source tools/env.bash``, ≈
+0.1–0.3 s) is not in the phases; it is timed on its own at the end and added to the current
+tree's median for the whole command as a user types it. The load average is printed before and
+after. Without ``--table`` the installed ``tvc_controller.npz`` (the default table) is flown.
+The run directories go to a temporary directory that is removed afterwards.
 """
 
 import argparse
