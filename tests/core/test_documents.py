@@ -123,3 +123,62 @@ def test_yaml_nested_too_deeply_is_one_line(text):
     with pytest.raises(BadFile) as err:
         parse_yaml(text, "deep.yaml")
     assert str(err.value) == "deep.yaml: YAML nested too deeply"
+
+
+def _project_yaml_files():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    return sorted(p for p in (root / "ros2_ws" / "src").rglob("*.yaml")
+                  if "__pycache__" not in p.parts)
+
+
+def test_libyaml_and_the_python_loader_build_the_same_trees_for_the_project_files():
+    """Every YAML file of the project, as parse_yaml reads it (libyaml when short), against
+    PyYAML's pure-Python SafeLoader; the short ones do go through libyaml."""
+    import yaml
+
+    from vega_core import documents
+
+    files = _project_yaml_files()
+    assert len(files) >= 8
+    short = 0
+    for path in files:
+        text = path.read_text()
+        if len(text) <= documents.C_PARSER_MAX_CHARS:
+            short += 1
+            assert documents._loader(yaml, text) is yaml.CSafeLoader
+        want = yaml.load(text, Loader=yaml.SafeLoader)
+        if isinstance(want, dict):
+            assert documents.parse_yaml(text, str(path)) == want, path
+    assert short >= 8
+
+
+@pytest.mark.parametrize("unit", ["[", "- ", "{a: "])
+def test_the_deepest_text_libyaml_gets_parses_in_a_thread_too(unit):
+    """A text of C_PARSER_MAX_CHARS characters nested as deep as it can (one level per
+    character or two): libyaml returns or raises a YAML error, in a thread (a smaller stack
+    than the main thread's on some systems) — it does not crash the process."""
+    import threading
+
+    import yaml
+
+    from vega_core import documents
+
+    n = documents.C_PARSER_MAX_CHARS
+    text = (unit * n)[:n]
+    assert documents._loader(yaml, text) is yaml.CSafeLoader
+    assert documents._loader(yaml, text + " ") is yaml.SafeLoader
+    outcome = []
+
+    def parse():
+        try:
+            documents.parse_yaml(text, "deep.yaml")
+            outcome.append("parsed")
+        except BadFile as exc:
+            outcome.append(str(exc))
+
+    thread = threading.Thread(target=parse)
+    thread.start()
+    thread.join()
+    assert len(outcome) == 1 and outcome[0] != "parsed"   # unclosed, or too deep: refused
