@@ -45,3 +45,6 @@ def test_one_round_on_real_copies(tmp_path):
     assert failed.returncode == 1
     last = log.read_text().splitlines()[-1]
     assert '"passed": false' in last and last.count("test_bad.py::test_no") == 2
+    kept = sorted(tmp_path.glob("soak-round1-copy*.log"))
+    assert [p.name for p in kept] == ["soak-round1-copy0.log", "soak-round1-copy1.log"]
+    assert all("assert 1 + 1 == 3" in p.read_text() for p in kept)

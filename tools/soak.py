@@ -12,7 +12,9 @@ ROS_DOMAIN_ID of its own as every test run does (``vega_bringup.rosenv.pick_doma
 locked per-user counter, so copies started together get different ids). A round passes when
 every copy exits 0 with at least one test passed and none failed, errored or skipped; the
 round's line (copies' exit codes, pass/fail/skip counts, wall time, the load average before
-and after) is printed and appended to the log (JSON lines), with the failing tests' ids.
+and after) is printed and appended to the log (JSON lines), with the failing tests' ids; the
+copies' whole output of a failing round is kept beside the log
+(``<log stem>-round<n>-copy<i>.log``).
 Exit status 0 when every round passed, 1 otherwise; bad arguments: one line,
 exit 2. Long: a round of the whole suite is ≈ 15–25 min with two copies on two cores.
 """
@@ -99,6 +101,13 @@ def main(argv: list[str] | None = None) -> int:
     for n in range(1, args.rounds + 1):
         with tempfile.TemporaryDirectory(prefix="vega_soak_") as scratch:
             result = run_round(args.copies, pytest_args, Path(scratch))
+            if not result["passed"]:          # the failing round's output, for its root cause
+                kept = []
+                for i in range(args.copies):
+                    target = args.log.parent / f"{args.log.stem}-round{n}-copy{i}.log"
+                    target.write_bytes((Path(scratch) / f"copy{i}.log").read_bytes())
+                    kept.append(str(target))
+                result["copy_logs"] = kept
         result.update(round=n, rounds=args.rounds, copies=args.copies, args=pytest_args,
                       when=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()))
         with open(args.log, "a") as log:
