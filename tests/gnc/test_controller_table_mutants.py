@@ -242,3 +242,18 @@ def test_integer_rate_grid_is_read_as_float(rate_file):
 @pytest.mark.parametrize("A", [np.ones(3), np.ones((3, 2))])
 def test_state_matrix_of_too_few_dimensions_is_refused(plain_file, A):
     _refused(plain_file, _arrays(plain_file, A=A), "'A' has shape")
+
+
+def test_the_default_table_is_the_installed_copy_of_the_shipped_tvc_controller():
+    """The installed file (ament share directory) against the repository's own copy, read
+    byte for byte (the path is not formed the way default_table_path forms it)."""
+    from pathlib import Path
+
+    from vega_gnc.controller_table import default_table_path
+
+    path = default_table_path()
+    shipped = (Path(__file__).resolve().parents[2] / "ros2_ws" / "src" / "vega_gnc" / "config"
+               / "tvc_controller.npz")
+    assert path.name == "tvc_controller.npz"
+    assert path.parent.name == "config" and "vega_gnc" in path.parts
+    assert path.read_bytes() == shipped.read_bytes()

@@ -37,3 +37,11 @@ def test_to_dict_lists_every_field_by_name():
         "delay_s": {"lower": -0.01, "upper": 0.02, "kind": "absolute", "applies_to": "tau",
                     "source": "§2.12.4"},
     }
+
+
+def test_iterating_a_set_gives_its_parameters_in_order():
+    a = UncertainParameter("mass", -0.1, 0.2, "relative", "m")
+    b = UncertainParameter("delay_s", -0.01, 0.02, "absolute", "tau")
+    s = UncertaintySet([a, b])
+    assert [p.name for p in s] == ["mass", "delay_s"]
+    assert list(s) == [a, b] and len(s) == 2
