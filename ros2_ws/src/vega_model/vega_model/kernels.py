@@ -11,8 +11,8 @@ module, which loads in ≈ 1 ms without numba.
 One source: the extension is compiled from the functions of those two modules (their
 ``py_func``), with the signatures below; no ``fastmath``, no CPU-specific target, so the numbers
 are the JIT's and the plain-Python model's bit for bit (tests/model/test_kernels.py). The
-module's file name carries a digest of the two source files, of numba's version and of the
-signatures (:func:`source_digest`): after an edit of a kernel the old file is never loaded,
+module's file name carries a digest of the two source files, of numba's and numpy's versions
+and of the signatures (:func:`source_digest`): after an edit of a kernel the old file is never loaded,
 and :func:`compiled` falls back to the JIT functions until ``make setup`` builds it again.
 
 Examples
@@ -54,23 +54,29 @@ _HERE = Path(__file__).resolve().parent
 _PREFIX = "vega_kernels_aot_"
 
 
-def _numba_version() -> str:
-    # the installed distribution's name (numba-<version>.dist-info beside the package), read
-    # without importing numba or importlib.metadata (≈ 20 ms)
-    spec = importlib.util.find_spec("numba")
-    if spec is None or spec.origin is None:
-        return "none"
-    found = sorted(p.name for p in Path(spec.origin).parent.parent.glob("numba-*.dist-info"))
-    return ",".join(found) or "unknown"
+def _versions() -> str:
+    """numba's and numpy's installed distributions (``<name>-<version>.dist-info`` beside each
+    package: the extension is compiled by one and linked against the other's C API), read
+    without importing them or importlib.metadata (≈ 20 ms)."""
+    found = []
+    for name in ("numba", "numpy"):
+        spec = importlib.util.find_spec(name)
+        if spec is None or spec.origin is None:
+            found.append(f"{name}: none")
+            continue
+        found += sorted(p.name for p in Path(spec.origin).parent.parent.glob(
+            f"{name}-*.dist-info")) or [f"{name}: unknown"]
+    return ",".join(found)
 
 
 def source_digest() -> str:
-    """16 hex digits of SHA-256 over the kernel modules' source files, numba's version and
-    :data:`SIGNATURES`: the name of the extension that is current for this source."""
+    """16 hex digits of SHA-256 over the kernel modules' source files, numba's and numpy's
+    versions and :data:`SIGNATURES`: the name of the extension that is current for this
+    source."""
     h = hashlib.sha256()
     for module in sorted({m for m, _ in SIGNATURES.values()}):
         h.update((_HERE / f"{module}.py").read_bytes())
-    h.update(_numba_version().encode())
+    h.update(_versions().encode())
     h.update(repr(sorted(SIGNATURES.items())).encode())
     return h.hexdigest()[:16]
 
