@@ -12,8 +12,9 @@ One source: the extension is compiled from the functions of those two modules (t
 ``py_func``), with the signatures below; no ``fastmath``, no CPU-specific target, so the numbers
 are the JIT's and the plain-Python model's bit for bit (tests/model/test_kernels.py). The
 module's file name carries a digest of the two source files, of numba's and numpy's versions
-and of the signatures (:func:`source_digest`): after an edit of a kernel the old file is never loaded,
-and :func:`compiled` falls back to the JIT functions until ``make setup`` builds it again.
+and of the signatures (:func:`source_digest`): after an edit of a kernel the old file is never
+loaded, and :func:`compiled` falls back to the JIT functions until ``make setup`` builds it
+again.
 
 Examples
 --------
