@@ -100,3 +100,90 @@ def test_model_parameters_uses_the_given_context_or_the_default_one():
     assert model_parameters(30.0).t_s == 30.0
     got = model_parameters(30.0, custom)
     assert got.aero is custom.aero and got.t_s == 30.0
+
+
+@pytest.mark.parametrize("deviations", [{"velocity": 0.02}, {"x_cg": -0.01, "psi_mode_2": 0.4}])
+def test_deviations_naming_a_few_parameters_leave_the_others_nominal(deviations):
+    ctx = default_context()
+    times = np.arange(0, 1001) * 0.1
+    for t, p in zip(times.tolist(), ctx.parameters_at_times(times, deviations)):
+        _same(p, ctx.parameters(t).perturbed(deviations))
+
+
+def test_at_the_tables_own_times_and_for_integer_times():
+    """Every row time of the flight-conditions table (where the interpolation's interval is
+    decided by equality) and times given as Python ints: the scalar path's objects."""
+    ctx = default_context()
+    rows = ctx.conditions.t_s
+    for t, p in zip(rows.tolist(), ctx.parameters_at_times(rows)):
+        _same(p, ctx.parameters(t))
+    ints = [0, 1, 17, 40, 99, 100]
+    for t, p in zip(ints, ctx.parameters_at_times(ints)):
+        assert type(p.t_s) is float and type(p.v_mps) is float
+        _same(p, ctx.parameters(float(t)))
+
+
+def _conditions_with_rounding_rows(base):
+    """The shipped table with every other row's values multiplied by −3.7: rows where
+    a + 1·(b − a) is not b in floating point (in the shipped table it almost always is), so an
+    interval chosen one row too early at a row time shows in the last bits."""
+    from vega_model.flight_conditions import COLUMNS, FlightConditions
+
+    data = np.column_stack([base.column(name) for name in COLUMNS])
+    factors = np.where(np.arange(data.shape[0]) % 2 == 0, 1.0, -3.7)
+    data = data.copy()
+    data[:, 1:] *= factors[:, None]
+    return FlightConditions(base.path, COLUMNS, data, base.provenance)
+
+
+def test_row_times_of_a_table_whose_interpolation_rounds():
+    base = default_context()
+    ctx = ModelContext(base.vehicle, _conditions_with_rounding_rows(base.conditions))
+    v = ctx.conditions.column("v_mps")
+    assert sum(a + 1.0 * (b - a) != b for a, b in zip(v[:-1], v[1:])) > 100
+    rows = ctx.conditions.t_s
+    for t, p in zip(rows.tolist(), ctx.parameters_at_times(rows)):
+        _same(p, ctx.parameters(t))
+
+
+def test_bending_data_interpolated_over_a_window_not_starting_at_lift_off():
+    """Vehicle data whose bending window is 20–80 s (the shipped one starts at 0 s, where
+    t − t_start and t + t_start agree): the array path still equals the scalar path."""
+    import dataclasses as dc
+
+    base = default_context()
+    vehicle = dc.replace(base.vehicle, values={**base.vehicle.values,
+                                               "bending.t_start_s": 20.0,
+                                               "bending.t_end_s": 80.0})
+    ctx = ModelContext(vehicle, base.conditions)
+    times = np.array([0.0, 19.99, 20.0, 35.5, 50.0, 79.9, 80.0, 95.0])
+    many = ctx.parameters_at_times(times)
+    for t, p in zip(times.tolist(), many):
+        _same(p, ctx.parameters(t))
+    assert many[0].f1_hz == many[2].f1_hz != many[4].f1_hz != many[6].f1_hz == many[7].f1_hz
+
+
+@pytest.mark.parametrize("deviations", [{}, ALL_DEVIATIONS])
+def test_columns_are_the_fields_and_rebuild_the_objects(deviations):
+    """``columns`` of parameters_at_times: each the field of every returned object (the
+    mode-shape pairs as _0/_1); parameter_columns_at_times gives the same columns without the
+    objects; parameters_from_columns rebuilds each object (equal, field by field)."""
+    ctx = default_context()
+    times = np.arange(0, 2001) * 0.05
+    columns = {}
+    params = ctx.parameters_at_times(times, deviations, columns=columns)
+    assert len(columns) >= 20
+    for name, column in columns.items():
+        assert column.dtype == np.float64 and column.shape == times.shape
+        field, _, index = name.rpartition("_") if name.startswith("psi_") else (name, "", "")
+        values = [getattr(p, field)[int(index)] if index else getattr(p, field)
+                  for p in params]
+        assert column.tolist() == values, name
+    varying = {f.name for f in dataclasses.fields(params[0])
+               if len({getattr(p, f.name) for p in params}) > 1}
+    assert varying <= {n.rpartition("_")[0] if n.startswith("psi_") else n for n in columns}
+    only = ctx.parameter_columns_at_times(times, deviations)
+    assert sorted(only) == sorted(columns)
+    assert all(only[n].tolist() == columns[n].tolist() for n in columns)
+    for k in (0, 700, 2000):
+        _same(ctx.parameters_from_columns(only, k), params[k])
