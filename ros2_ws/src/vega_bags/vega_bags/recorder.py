@@ -13,7 +13,8 @@ the expected message counts), ``participants``, ``barrier_timeout_s``, ``stall_t
 * log time = the message's sim-time stamp (``header.stamp``; ``clock`` of /clock), read
   from the CDR bytes at the offsets of the computed layout (:class:`RawFields`);
 * checks ``seq`` of every data topic (a gap → exit 1, bag closed and readable);
-* reports its progress on ``/vega/recorded`` (the plant's back-pressure,
+* reports its progress on ``/vega/recorded``: the frames it holds on every topic, each time
+  they have grown by RECORDER_REPORT_FRAMES (:class:`FramesRecorded`; the plant's back-pressure,
   :data:`vega_bus.schedule.RECORDER_WINDOW_FRAMES`); takes its messages in batches
   (:data:`RECORDER_BATCH_S`);
 * knows the run's message counts (:meth:`vega_bus.schedule.RunInfo.expected_counts`); once it
@@ -38,9 +39,9 @@ from vega_core.errors import BadInput, one_line
 from vega_bus import qos, topics
 from vega_bus.schedule import RECORDER_REPORT_FRAMES
 from vega_bus.shell import EXIT_BAD_INPUT, EXIT_RUN_FAILURE, NodeExit, Shell, run_node
-from vega_bus.timing import NS_PER_S
+from vega_bus.timing import NS_PER_MS, NS_PER_S
 
-__all__ = ["RawFields", "Reorder", "main"]
+__all__ = ["FramesRecorded", "RawFields", "Reorder", "main"]
 
 # The recorder is off the lockstep's critical path (the plant may run
 # RECORDER_WINDOW_FRAMES ahead of it): it sleeps this long after each wake-up, so that one
@@ -167,6 +168,70 @@ class Reorder:
             self._write(name, t, payload)
 
 
+class FramesRecorded:
+    """The recorder's back-pressure report (/vega/recorded): how many frames of the run the
+    recorder holds on EVERY topic still running — the smallest, over those topics, of the
+    frame of its last message + 1 (frame = (stamp − t_start) // frame length); a topic that has
+    sent all its messages no longer counts; 0 before a topic's first message.
+
+    The plant does not run more than :data:`vega_bus.schedule.RECORDER_WINDOW_FRAMES` frames
+    beyond this report. Counting only the truth messages (as until 2026-11-27) let the plant
+    run on while another writer's deliveries to the recorder were held up: in a soak of the
+    test suite (two copies on two cores) the recorder lost /vega/ins samples 8 153–9 000 — 848
+    frames — while truth kept arriving, more than the INS writer's KEEP_LAST history of 1 000
+    samples could still repair in time. With every topic in the report, a writer whose
+    messages do not arrive stops the plant within the window, and its unacknowledged samples
+    (≤ window + report interval frames) stay in its history until the reliable protocol
+    repairs them. The topics sent less often than every frame (commands and diagnostics
+    every controller period, /clock every 10 frames) lag the truth by up to their period: the
+    effective window is a few frames shorter.
+
+    It cannot hold the run: a plant waiting at frame k (k − last report ≥ window) has sent
+    everything of the frames before k, and the other nodes send theirs without the recorder,
+    so the report reaches at least k − 11 (the /clock period, and one frame) ≥ last report +
+    window − 11, more than RECORDER_REPORT_FRAMES further: a report is always due
+    (tests/sim/test_recorder_window.py runs the protocol over a whole flight's schedule).
+
+    Parameters
+    ----------
+    expected
+        Topic name → messages of the complete run (:meth:`vega_bus.schedule.RunInfo.
+        expected_counts`).
+    t_start_ns, frame_ns
+        The run's first frame time and frame length [ns].
+    """
+
+    def __init__(self, expected: dict[str, int], t_start_ns: int, frame_ns: int):
+        self._t0, self._frame = int(t_start_ns), int(frame_ns)
+        self._left = dict(expected)
+        self._reached = {name: 0 for name in expected}
+        self._total = max(expected.values(), default=0)
+        self._reported = 0
+
+    def add(self, topic: str, stamp_ns: int) -> int | None:
+        """One message of ``topic`` (stamped ``stamp_ns``) received; returns :meth:`frames`
+        when it has grown by :data:`~vega_bus.schedule.RECORDER_REPORT_FRAMES` or more since
+        the last value returned (the report to publish), else None.
+
+        Checked on every message of every topic, not on the truth's alone: the executor
+        takes a batch topic by topic, so when a truth message arrives the other topics'
+        messages of the same frames may still wait in their queues — a report made only then
+        could lag the truth by the whole window and leave the plant waiting for a report that
+        no further truth message would trigger."""
+        self._left[topic] -= 1
+        self._reached[topic] = (int(stamp_ns) - self._t0) // self._frame + 1
+        now = self.frames()
+        if now >= self._reported + RECORDER_REPORT_FRAMES:
+            self._reported = now
+            return now
+        return None
+
+    def frames(self) -> int:
+        """Frames held on every running topic (all of them, the truth's count, when done)."""
+        running = [self._reached[name] for name, left in self._left.items() if left > 0]
+        return max(0, min(running)) if running else self._total
+
+
 def _recorder(shell: Shell) -> None:
     from pathlib import Path
 
@@ -193,10 +258,12 @@ def _recorder(shell: Shell) -> None:
     progress = node.create_publisher(UInt32, topics.RECORDED.name, qos.data_qos())
     writer = None
     reorder = Reorder(lambda topic, t, data: writer.write(topic, t, data), expected)
+    held = FramesRecorded(expected, info.t_start_ms * NS_PER_MS,
+                          info.timing.frame_ms * NS_PER_MS)
     for topic in topics.ALL_TOPICS:
         profile = qos.clock_qos() if topic is topics.CLOCK else qos.data_qos()
-        callback = _writer_callback(reorder, topic.name, topic.type_name, counts,
-                                    progress if topic is topics.TRUTH else None)
+        callback = _writer_callback(reorder, topic.name, topic.type_name, counts, held,
+                                    progress)
         shell.checked_subscription(topics.message_class(topic.type_name), topic.name,
                                    callback, profile, raw=True)
     barrier = shell.open_barrier(participants, [progress])
@@ -238,11 +305,11 @@ def _recorder(shell: Shell) -> None:
         shell.spin_once(0.01)   # a graph change does not wake the wait: poll (the run waits)
 
 
-def _writer_callback(reorder: Reorder, name: str, type_name: str, counts: dict, progress=None):
+def _writer_callback(reorder: Reorder, name: str, type_name: str, counts: dict,
+                     held: FramesRecorded, progress):
     """Callback handing the raw messages of topic ``name`` (type ``type_name``) to the
-    :class:`Reorder` buffer in front of the bag; with
-    ``progress`` (the truth topic), it reports the count on /vega/recorded every
-    RECORDER_REPORT_FRAMES messages."""
+    :class:`Reorder` buffer in front of the bag and to ``held``, and publishing on
+    ``progress`` (/vega/recorded) the report ``held`` returns."""
     from std_msgs.msg import UInt32
 
     fields = RawFields(type_name)
@@ -255,8 +322,9 @@ def _writer_callback(reorder: Reorder, name: str, type_name: str, counts: dict, 
                                              f"{counts[name]}, got {seq}")
         reorder.add(name, stamp, data)
         counts[name] += 1
-        if progress is not None and counts[name] % RECORDER_REPORT_FRAMES == 0:
-            report.data = counts[name]
+        frames = held.add(name, stamp)
+        if frames is not None:
+            report.data = frames
             progress.publish(report)
 
     return on_message

@@ -38,7 +38,9 @@ __all__ = ["RunInfo", "RECORDER_REPORT_FRAMES", "RECORDER_WINDOW_FRAMES", "CLOCK
            "clock_frames"]
 
 # Back-pressure from the recorder, the one participant no data dependency holds in step: it
-# reports every RECORDER_REPORT_FRAMES truth messages written (/vega/recorded), and the plant
+# reports every RECORDER_REPORT_FRAMES truth messages the frames it holds on every topic
+# (/vega/recorded, vega_bags.recorder.FramesRecorded: the truth alone until 2026-11-27, when a
+# soak lost 848 /vega/ins samples while truth kept arriving), and the plant
 # does not publish frame k while k − reported ≥ RECORDER_WINDOW_FRAMES. The window keeps the
 # messages in flight towards the recorder (≈ 4.5 per frame) well inside the publishers'
 # KEEP_LAST history (DATA_QUEUE_DEPTH = 1000 per topic; beyond it a writer drops samples the
