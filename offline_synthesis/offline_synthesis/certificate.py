@@ -75,10 +75,19 @@ def hinf_norm(A, B, C, D):
 
     Uses SLICOT ``ab13dd`` (Bruinsma & Steinbuch two-step algorithm) through python-control's
     :func:`control.linfnorm`, with relative tolerance 1e-10.
+
+    Raises
+    ------
+    ValueError
+        If a matrix holds a NaN or an infinity (ab13dd does not return on such input: a
+        defect upstream would otherwise hang the verification).
     """
     import control
 
     A = np.asarray(A, dtype=float)
+    for name, M in (("A", A), ("B", B), ("C", C), ("D", D)):
+        if not np.all(np.isfinite(np.asarray(M, dtype=float))):
+            raise ValueError(f"hinf_norm: {name} is not finite")
     if A.size and np.max(np.linalg.eigvals(A).real) >= 0.0:
         return float("inf")
     gpeak, _ = control.linfnorm(control.ss(A, B, C, D), tol=1e-10)

@@ -118,3 +118,13 @@ def test_exact_rational_entries_are_converted_to_float():
     C = [[1.0, 0.0]]       # 1/(s + 2) is seen; 1/(s + 1/2) is not observed
     assert hinf_norm(A, B, C, [[0.0]]) == pytest.approx(0.5, rel=REL)
     assert math.isinf(hinf_norm([[Fraction(1, 3)]], [[1.0]], [[1.0]], [[0.0]]))
+
+
+@pytest.mark.parametrize("where", ["A", "B", "C", "D"])
+@pytest.mark.parametrize("bad", [float("nan"), float("inf")])
+def test_non_finite_matrices_are_refused_at_once(where, bad):
+    """SLICOT's ab13dd never returns on NaN input (seen with B or C set to NaN): refused."""
+    m = {"A": [[-1.0]], "B": [[1.0]], "C": [[1.0]], "D": [[0.0]]}
+    m[where] = [[bad]]
+    with pytest.raises(ValueError, match=f"hinf_norm: {where} is not finite"):
+        hinf_norm(m["A"], m["B"], m["C"], m["D"])
