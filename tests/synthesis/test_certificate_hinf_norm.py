@@ -128,3 +128,10 @@ def test_non_finite_matrices_are_refused_at_once(where, bad):
     m[where] = [[bad]]
     with pytest.raises(ValueError, match=f"hinf_norm: {where} is not finite"):
         hinf_norm(m["A"], m["B"], m["C"], m["D"])
+
+
+def test_rational_entries_in_every_matrix_are_numbers():
+    """B, C and D from an exact derivation too (the finiteness check reads them as floats):
+    k/(s + a) + d with k = 3/2, a = 1/2, d = 1/4 → |k|/a + d = 3.25 (peak at ω = 0)."""
+    got = hinf_norm([[Fraction(-1, 2)]], [[Fraction(3, 2)]], [[Fraction(1)]], [[Fraction(1, 4)]])
+    assert got == pytest.approx(3.25, rel=1e-9)
