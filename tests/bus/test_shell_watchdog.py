@@ -70,12 +70,13 @@ def test_normal_teardown_is_not_cut_short():
     assert result.returncode == 0 and result.stdout == "after close\n" and result.stderr == ""
 
 
-@pytest.mark.parametrize("code, status", [(0, -14), (1, 1)])
+@pytest.mark.parametrize("code, status", [(0, 0), (1, 1), (2, 2)])
 def test_teardown_hanging_with_the_gil_held_still_ends_with_its_stacks(code, status):
     """The watchdog thread needs the GIL; a teardown blocked in C holding it (here: a long
-    builtin sum) is ended without it: faulthandler writes the stacks, then a failed run exits 1
-    (faulthandler), a complete one dies of SIGALRM (-14), which the orchestrator reads as
-    "finished, teardown hung"."""
+    builtin sum) is ended without it: faulthandler writes the stacks, then the C library's
+    POSIX timer ends the process with the run's own exit code — 0 for a complete run (the soak
+    of 2026-11-27 saw the INS and the actuator hang so in rmw_destroy_node; they used to die
+    of SIGALRM, -14)."""
     script = textwrap.dedent(f"""
         import vega_bus.shell as shell
         shell.SHUTDOWN_GRACE_S = 0.5
@@ -94,6 +95,41 @@ def test_teardown_hanging_with_the_gil_held_still_ends_with_its_stacks(code, sta
     assert result.stdout == ""
     assert "Timeout (0:00:01)!" in result.stderr
     assert "in close" in result.stderr and "middleware shutdown hung" not in result.stderr
+
+
+def test_the_exit_timer_is_disarmed_by_a_teardown_that_ends_in_time():
+    """With the limits shortened (the exit timer due 1.5 s after close starts), a close of
+    0.1 s: the process lives on past the timer's due time and exits normally."""
+    script = textwrap.dedent("""
+        import time
+        import vega_bus.shell as shell
+        shell.SHUTDOWN_GRACE_S = 0.5
+        shell.HARD_SHUTDOWN_MARGIN_S = 0.5
+
+        class Quick:
+            def close(self):
+                time.sleep(0.1)
+
+        shell._close_with_watchdog("plant", Quick(), 0)
+        time.sleep(2.5)
+        print("after the due time")
+    """)
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                            timeout=budget_s(30.0), check=False)
+    assert result.returncode == 0 and result.stdout == "after the due time\n"
+    assert result.stderr == ""
+
+
+def test_the_exit_timer_ends_the_process_with_its_code_while_the_gil_is_held():
+    script = textwrap.dedent("""
+        import vega_bus.shell as shell
+        shell._exit_timer(0.3, 5)
+        sum(range(10**13))
+        print("not reached")
+    """)
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                            timeout=budget_s(30.0), check=False)
+    assert result.returncode == 5 and result.stdout == ""
 
 
 def test_the_orchestrator_counts_a_teardown_watchdog_end_as_finished(tmp_path):

@@ -654,19 +654,19 @@ HARD_SHUTDOWN_MARGIN_S = 3.0
 """The backstop of :data:`SHUTDOWN_GRACE_S` that needs no GIL comes this much later (s).
 
 A teardown blocked in C code that holds the GIL starves the watchdog thread: seen in CI,
-``ins_sensor`` silent for 30 s after a complete run (its bag complete), not one line in its
-log, not even the watchdog's — consistent with a hang inside rclpy's node destruction with the
-GIL held (the likely cause, not verified in rclpy's source; the stacks this writes will
-tell). Then :func:`faulthandler.dump_traceback_later` (a C thread) writes the Python stacks to
-stderr; a node whose run had failed is ended by it, exit 1; a node
-whose run was complete is ended one second later by :data:`TEARDOWN_WATCHDOG_SIGNAL` with its
-default action (:func:`signal.alarm`, no GIL needed either), which the orchestrator reads as
-"finished, teardown hung" (status 0 with a warning): an exit status cannot be chosen without
-the GIL."""
+``ins_sensor`` silent for 30 s after a complete run (its bag complete), and in a soak of the
+test suite (2026-11-27, fifth session) the INS and the actuator with their main thread in
+rclpy's ``Node.destroy_node`` → ``destroy_when_not_in_use()`` (rmw_destroy_node) for more than
+13 s. Then :func:`faulthandler.dump_traceback_later` (a C thread) writes the Python stacks to
+stderr and, :data:`EXIT_AFTER_STACKS_S` later, a POSIX timer of the C library
+(:func:`_exit_timer`) ends the process with the exit code the run already had — 0 for a
+complete run. Where POSIX timers cannot be used, a failed node is ended by faulthandler (exit
+1) and a complete one by :data:`TEARDOWN_WATCHDOG_SIGNAL`'s default action, which the
+orchestrator reads as "finished, teardown hung" (status 0 with a warning)."""
 
 TEARDOWN_WATCHDOG_SIGNAL = signal.SIGALRM
 """The signal that ends a node whose middleware teardown hung with the GIL held after a
-complete run (:data:`HARD_SHUTDOWN_MARGIN_S`)."""
+complete run where no POSIX timer could be armed (:data:`HARD_SHUTDOWN_MARGIN_S`)."""
 
 
 def _fault_stream():
@@ -697,10 +697,16 @@ def _close_with_watchdog(name: str, shell: Shell, code: int) -> None:
     watchdog.start()
     hard_s = SHUTDOWN_GRACE_S + HARD_SHUTDOWN_MARGIN_S
     stream = _fault_stream()
+    try:
+        cancel_exit = _exit_timer(hard_s + EXIT_AFTER_STACKS_S, code)
+    except (OSError, AttributeError, TypeError, ValueError):
+        cancel_exit = None          # no POSIX timers here: the signal / faulthandler backstop
     if stream is not None:
-        faulthandler.dump_traceback_later(hard_s, exit=code != EXIT_OK, file=stream)
+        faulthandler.dump_traceback_later(hard_s, exit=cancel_exit is None and code != EXIT_OK,
+                                          file=stream)
     # signal dispositions can be set from the main thread only (a node's body runs there)
-    alarm = code == EXIT_OK and threading.current_thread() is threading.main_thread()
+    alarm = cancel_exit is None and code == EXIT_OK and \
+        threading.current_thread() is threading.main_thread()
     if alarm:
         signal.signal(TEARDOWN_WATCHDOG_SIGNAL, signal.SIG_DFL)
         signal.alarm(math.ceil(hard_s) + 1)
@@ -709,7 +715,67 @@ def _close_with_watchdog(name: str, shell: Shell, code: int) -> None:
     except Exception:  # noqa: BLE001 - best effort at exit
         pass
     finally:
+        if cancel_exit is not None:
+            cancel_exit()
         if alarm:
             signal.alarm(0)
         faulthandler.cancel_dump_traceback_later()
         watchdog.cancel()
+
+
+EXIT_AFTER_STACKS_S = 0.5
+"""How long after the GIL-free stack dump the GIL-free exit comes (s): time for the dump."""
+
+
+def _exit_timer(seconds: float, code: int) -> Callable[[], None]:
+    """Arm a POSIX timer (``timer_create`` with SIGEV_THREAD, CLOCK_MONOTONIC) whose expiry
+    calls the C library's ``_exit(code)`` in a thread of the C library's own: it ends the
+    process with ``code`` even while the main thread holds the GIL in C code (the middleware
+    teardown hang of :data:`HARD_SHUTDOWN_MARGIN_S`), where no Python code can run. Returns
+    the function that disarms it.
+
+    Raises
+    ------
+    OSError
+        If the timer cannot be created or armed (AttributeError/TypeError where the C
+        library has no such functions: the caller falls back to the signal backstop).
+    """
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)
+
+    class Sigval(ctypes.Union):
+        _fields_ = [("sival_int", ctypes.c_int), ("sival_ptr", ctypes.c_void_p)]
+
+    class SigevThread(ctypes.Structure):
+        _fields_ = [("function", ctypes.c_void_p), ("attribute", ctypes.c_void_p)]
+
+    class SigevUnion(ctypes.Union):
+        _fields_ = [("pad", ctypes.c_int * 12), ("tid", ctypes.c_int), ("thread", SigevThread)]
+
+    class Sigevent(ctypes.Structure):           # Linux struct sigevent (64 bytes)
+        _fields_ = [("sigev_value", Sigval), ("sigev_signo", ctypes.c_int),
+                    ("sigev_notify", ctypes.c_int), ("un", SigevUnion)]
+
+    class Timespec(ctypes.Structure):
+        _fields_ = [("tv_sec", ctypes.c_long), ("tv_nsec", ctypes.c_long)]
+
+    class Itimerspec(ctypes.Structure):
+        _fields_ = [("it_interval", Timespec), ("it_value", Timespec)]
+
+    if ctypes.sizeof(Sigevent) != 64:
+        raise OSError(f"struct sigevent is not 64 bytes here ({ctypes.sizeof(Sigevent)})")
+    event = Sigevent()
+    event.sigev_notify = 2                      # SIGEV_THREAD: call the function in a thread
+    event.sigev_value.sival_ptr = int(code)     # the argument: _exit(code), the whole word set
+    event.un.thread.function = ctypes.cast(libc._exit, ctypes.c_void_p).value
+    timer = ctypes.c_void_p()
+    if libc.timer_create(1, ctypes.byref(event), ctypes.byref(timer)) != 0:   # MONOTONIC
+        raise OSError(ctypes.get_errno(), "timer_create failed")
+    spec = Itimerspec()
+    spec.it_value.tv_sec = int(seconds)
+    spec.it_value.tv_nsec = int(round((seconds - int(seconds)) * 1e9))
+    if libc.timer_settime(timer, 0, ctypes.byref(spec), None) != 0:
+        libc.timer_delete(timer)
+        raise OSError(ctypes.get_errno(), "timer_settime failed")
+    return lambda: libc.timer_delete(timer)
