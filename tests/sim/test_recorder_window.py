@@ -90,6 +90,9 @@ def test_a_finished_topic_no_longer_holds_the_report_and_all_done_is_the_truth_c
         held.add("/a", 10 * k)
         assert held.frames() == k + 1
     assert held.frames() == 3                            # every topic done: the largest count
+    final = FramesRecorded({"/t": 45}, 0, 1)
+    reports = [r for r in (final.add("/t", k) for k in range(45)) if r is not None]
+    assert reports == [20, 40]           # never 45: the truth count is the final report's
     early = FramesRecorded({"/a": 5, "/b": 5}, 100, 10)
     early.add("/a", 100 + 40)                            # frame 4
     assert early.frames() == 0                           # /b has sent nothing yet
@@ -155,6 +158,7 @@ def test_the_window_protocol_over_a_whole_flight_never_stalls_and_holds_the_plan
                 queues[name].clear()
             worst_ahead = max(worst_ahead, k - held.frames())
         assert k == n + 1 and held.frames() == n + 1
+        assert report <= n        # the truth count n + 1 is the final report's alone
         if hold_ins:                           # the plant stopped within the window
             assert held_steps == 100
             assert k_while_held <= hold_ins + RECORDER_WINDOW_FRAMES + batch, k_while_held

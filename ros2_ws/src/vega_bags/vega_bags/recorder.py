@@ -220,7 +220,11 @@ class FramesRecorded:
         no further truth message would trigger."""
         self._left[topic] -= 1
         self._reached[topic] = (int(stamp_ns) - self._t0) // self._frame + 1
-        now = self.frames()
+        # never the truth count itself: that value is the recorder's final report, sent once
+        # the bag is closed, on which the other nodes end (vega_bus.shell.Shell.finish); a
+        # progress report reaching it let them end while the recorder was still in its start
+        # barrier (a 1 s flight, fresh-clone CI under load), which then never completed
+        now = min(self.frames(), self._total - 1)
         if now >= self._reported + RECORDER_REPORT_FRAMES:
             self._reported = now
             return now
