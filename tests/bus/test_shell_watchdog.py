@@ -51,23 +51,31 @@ def test_hanging_teardown_exits_with_the_runs_code(code):
     assert result.stderr == "plant: middleware shutdown hung for 0.5 s; exiting without it\n"
 
 
-def test_normal_teardown_is_not_cut_short():
-    script = textwrap.dedent("""
+@pytest.mark.parametrize("limits, code, after_s, line", [
+    ("shell.SHUTDOWN_GRACE_S = 5.0", 1, 0.2, "after close"),
+    # the exit timer due 1.5 s after close starts: the process lives on past its due time
+    ("shell.SHUTDOWN_GRACE_S = 0.5; shell.HARD_SHUTDOWN_MARGIN_S = 0.5", 0, 2.5,
+     "after the due time"),
+])
+def test_normal_teardown_is_not_cut_short(limits, code, after_s, line):
+    """A close of 0.1 s: neither the watchdog thread nor the GIL-free exit timer ends the
+    process (the timer is disarmed when the teardown ends in time)."""
+    script = textwrap.dedent(f"""
         import time
         import vega_bus.shell as shell
-        shell.SHUTDOWN_GRACE_S = 5.0
+        {limits}
 
         class Quick:
             def close(self):
                 time.sleep(0.1)
 
-        shell._close_with_watchdog("plant", Quick(), 1)
-        time.sleep(0.2)
-        print("after close")
+        shell._close_with_watchdog("plant", Quick(), {code})
+        time.sleep({after_s})
+        print("{line}")
     """)
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                             timeout=budget_s(30.0), check=False)
-    assert result.returncode == 0 and result.stdout == "after close\n" and result.stderr == ""
+    assert result.returncode == 0 and result.stdout == line + "\n" and result.stderr == ""
 
 
 @pytest.mark.parametrize("code, status", [(0, 0), (1, 1), (2, 2)])
@@ -95,29 +103,6 @@ def test_teardown_hanging_with_the_gil_held_still_ends_with_its_stacks(code, sta
     assert result.stdout == ""
     assert "Timeout (0:00:01)!" in result.stderr
     assert "in close" in result.stderr and "middleware shutdown hung" not in result.stderr
-
-
-def test_the_exit_timer_is_disarmed_by_a_teardown_that_ends_in_time():
-    """With the limits shortened (the exit timer due 1.5 s after close starts), a close of
-    0.1 s: the process lives on past the timer's due time and exits normally."""
-    script = textwrap.dedent("""
-        import time
-        import vega_bus.shell as shell
-        shell.SHUTDOWN_GRACE_S = 0.5
-        shell.HARD_SHUTDOWN_MARGIN_S = 0.5
-
-        class Quick:
-            def close(self):
-                time.sleep(0.1)
-
-        shell._close_with_watchdog("plant", Quick(), 0)
-        time.sleep(2.5)
-        print("after the due time")
-    """)
-    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                            timeout=budget_s(30.0), check=False)
-    assert result.returncode == 0 and result.stdout == "after the due time\n"
-    assert result.stderr == ""
 
 
 def test_the_exit_timer_ends_the_process_with_its_code_while_the_gil_is_held():
