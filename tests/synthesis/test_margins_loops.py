@@ -230,3 +230,36 @@ def test_nichols_curves_one_per_corner(table, context):
     assert dev[0] < 1e-2 and dev.max() > 0.5
     w1 = p.omega_radps[0]
     assert 0.8 * w1 <= w[np.argmax(dev)] <= 1.5 * w1    # where mode 1 moved (+20 %)
+
+
+@pytest.mark.parametrize("theta0", [0.5, math.pi])
+@pytest.mark.parametrize("rho", [1.0 - 1e-4, 1.0 + 1e-3])
+@pytest.mark.parametrize("cb, dd", [(0.5, 1.0), (2.0, 10.0), (-1.0, 60.0), (5.0, 5.0)])
+def test_nyquist_count_with_a_controller_pole_pair_near_the_circle(theta0, rho, cb, dd):
+    """Plant 1/s (no delay), u = −K(z) y, K(z) = cb / D(z) + dd with the pole pair
+    D(z) = z² − 2ρ cos θ₀ z + ρ² near |z| = 1 at θ₀ = 0.5 rad, or a double pole at −ρ
+    (θ₀ = π, the end of the half contour): the argument of 1 + L_d swings by ≈ 180° or more
+    within 1e-3 rad of θ₀. Reference: the roots of (z − 1) D(z) + T (cb + dd D(z)) by hand;
+    P = the two controller poles when ρ > 1."""
+    T = 0.02
+    model = M.sampled_data_model(np.array([[0.0]]), np.array([[1.0]]), T, 0.0)
+    c = math.cos(theta0)
+    K = (np.array([[0.0, 1.0], [-rho ** 2, 2.0 * rho * c]]), np.array([[0.0], [1.0]]),
+         np.array([[cb, 0.0]]), np.array([[dd]]))
+    D = np.array([1.0, -2.0 * rho * c, rho ** 2])
+    poly = np.polyadd(np.polymul([1.0, -1.0], D), T * np.polyadd([cb], dd * D))
+    expected = int(np.sum(np.abs(np.roots(poly)) > 1 + 1e-9))
+    got = M.sampled_data_stability(model, np.array([[1.0]]), K, sign=-1.0)
+    assert got["n_open_unstable"] == (2 if rho > 1 else 0)
+    assert got["n_unstable"] == got["n_unstable_nyquist"] == expected
+
+
+def test_analyse_loop_cross_checks_by_default(table, context):
+    from vega_model.actuator import ActuatorParams
+
+    data = M.loop_data(table, context, 60.0)
+    p = context.parameters(60.0)
+    act = ActuatorParams.from_vehicle(context.vehicle)
+    row = M.analyse_loop(data, p, act, 0.039)
+    assert row["n_unstable_nyquist"] == row["n_unstable"] == 0
+    assert "n_unstable_nyquist" not in M.analyse_loop(data, p, act, 0.039, nyquist=False)
