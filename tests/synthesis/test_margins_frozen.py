@@ -218,3 +218,41 @@ def test_init_worker_and_time_task(context):
     assert [(r["t_s"], r["corner"]) for r in rows] == [(60.0, 0), (60.0, 3)]
     assert rows[1]["delay_s"] == pytest.approx(0.049)
     assert "n_unstable_nyquist" in rows[0] and "n_unstable_nyquist" not in rows[1]
+
+
+def test_sweep_progress_every_time_for_few_times_and_the_elapsed_time():
+    """Fewer than 40 times: a line after every time; the elapsed time in each line and the
+    run time are this run's (measured around the call here)."""
+    import time
+
+    lines = []
+    t0 = time.perf_counter()
+    res = M.sweep(str(SHIPPED), [10.0, 20.0, 30.0], workers=0, progress=lines.append)
+    wall = time.perf_counter() - t0
+    assert [s.split(" times")[0] for s in lines] == ["margins: 1/3", "margins: 2/3",
+                                                    "margins: 3/3"]
+    assert [s.split("t = ")[1].split(" s,")[0] for s in lines] == ["10", "20", "30"]
+    elapsed = [float(s.split(", ")[-1].removesuffix(" s elapsed")) for s in lines]
+    assert 0.0 <= elapsed[0] <= elapsed[1] <= elapsed[2] <= wall + 0.05
+    assert 0.0 < res["run_time_s"] <= wall
+
+
+def test_sweep_in_worker_processes_matches_the_in_process_sweep():
+    """One spawned worker (the parent does not load the table itself): the same rows as the
+    in-process sweep, by time, and a progress line per time counted from 1."""
+    times = [47.0, 47.5, 48.0]
+    M._WORKER.clear()
+    lines = []
+    res = M.sweep(str(SHIPPED), times, workers=1, progress=lines.append)
+    assert M._WORKER == {}
+    assert res["workers"] == 1
+    assert [s.split(" times")[0] for s in lines] == ["margins: 1/3", "margins: 2/3",
+                                                    "margins: 3/3"]
+    assert lines[-1].startswith("margins: 3/3 times (1 plant(s) each), t = 48 s, ")
+    here = M.sweep(str(SHIPPED), times, workers=0)
+    M._WORKER.clear()
+    assert [r["t_s"] for r in res["rows"]] == times
+    for a, b in zip(res["rows"], here["rows"]):
+        assert a.keys() == b.keys()
+        for k in a:
+            assert a[k] == b[k] or (a[k] != a[k] and b[k] != b[k]), k
