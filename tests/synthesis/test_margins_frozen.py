@@ -251,6 +251,10 @@ def test_sweep_in_worker_processes_matches_the_in_process_sweep():
     assert lines[-1].startswith("margins: 3/3 times (1 plant(s) each), t = 48 s, ")
     here = M.sweep(str(SHIPPED), times, workers=0)
     M._WORKER.clear()
+    # the default: two worker processes, nominal plant only
+    two = M.sweep(str(SHIPPED), times[:1])
+    assert M._WORKER == {} and two["workers"] == 2 and len(two["corners"]) == 1
+    assert two["rows"][0]["pm_deg"] == here["rows"][0]["pm_deg"]
     assert [r["t_s"] for r in res["rows"]] == times
     for a, b in zip(res["rows"], here["rows"]):
         assert a.keys() == b.keys()
