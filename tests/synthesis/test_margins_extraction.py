@@ -235,3 +235,14 @@ def test_phase_stabilised_strictly_above_minus_6_db():
     got = M.extract_margins(w, loop(0.5007719441961345 * (1 + 1e-12)), (10.0, 50.0))
     assert -6.0 < got["b1_peak_db"] < -5.99999
     assert got["b1_phase_stabilised"] is True
+
+
+def test_a_phase_crossover_at_exactly_0_db_is_a_zero_gain_increase_margin():
+    """|L| = 1 at −180° (the loop on the stability boundary): reported once, as a gain
+    increase margin of 0 dB, not as a reduction margin. The two samples were found by
+    bisection so that the interpolated magnitude is 0.0 to the last bit (checked)."""
+    L = np.array([1.428571428571429 * np.exp(1j * np.radians(-170.0)),
+                  0.7 * np.exp(1j * np.radians(-190.0))])
+    got = M.extract_margins([1.0, 2.0], L)
+    assert got["gm_high_db"] == 0.0 and got["w_gm_high_radps"] == pytest.approx(math.sqrt(2))
+    assert got["gm_low_db"] == math.inf
