@@ -263,3 +263,31 @@ def test_analyse_loop_cross_checks_by_default(table, context):
     row = M.analyse_loop(data, p, act, 0.039)
     assert row["n_unstable_nyquist"] == row["n_unstable"] == 0
     assert "n_unstable_nyquist" not in M.analyse_loop(data, p, act, 0.039, nyquist=False)
+
+
+@pytest.mark.parametrize("theta_p, delta", [(3.9e-4, 1e-5), (3.9e-4, 3e-5), (0.3, 1e-4),
+                                            (math.pi - 3.9e-4, 3e-5)])
+@pytest.mark.parametrize("cb, dd", [(1e-3, 0.5), (1e-2, 2.0)])
+def test_nyquist_count_with_a_double_controller_pole_pair_close_to_the_circle(theta_p, delta,
+                                                                              cb, dd):
+    """K(z) = cb / D(z)² + dd, D(z) = z² − 2ρ cos θp z + ρ², ρ = 1 − δ: a double pole pair
+    δ inside the circle, within 4e-4 rad of θ = 0 or π or at 0.3 rad. Along the contour the
+    argument of 1 + L_d turns by ≈ 360° within a few δ of θp — inside one step of the
+    uniform θ grid (π/4000 ≈ 7.9e-4), so the count needs the fine grids near 0 and π and
+    the refinement. Reference: the roots of (z − 1) D(z)² + T (cb + dd D(z)²) by hand (none
+    within 5e-6 of the circle: the premise, checked)."""
+    T = 0.02
+    rho = 1.0 - delta
+    model = M.sampled_data_model(np.array([[0.0]]), np.array([[1.0]]), T, 0.0)
+    D = np.array([1.0, -2.0 * rho * math.cos(theta_p), rho ** 2])
+    D2 = np.polymul(D, D)
+    Ad = np.zeros((4, 4))
+    Ad[:3, 1:] = np.eye(3)
+    Ad[3] = -D2[1:][::-1]                            # companion form of 1 / D(z)²
+    K = (Ad, np.array([[0.0], [0.0], [0.0], [1.0]]), np.array([[cb, 0.0, 0.0, 0.0]]),
+         np.array([[dd]]))
+    r = np.abs(np.roots(np.polyadd(np.polymul([1.0, -1.0], D2), T * np.polyadd([cb], dd * D2))))
+    assert np.min(np.abs(r - 1.0)) > 5e-6
+    got = M.sampled_data_stability(model, np.array([[1.0]]), K, sign=-1.0)
+    assert got["n_open_unstable"] == 0
+    assert got["n_unstable"] == got["n_unstable_nyquist"] == int(np.sum(r > 1.0))
