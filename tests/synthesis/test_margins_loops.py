@@ -142,6 +142,12 @@ def test_stability_count_on_the_circle_boundary():
         assert (got["n_unstable"], got["n_open_unstable"]) == (n, n), rho
         assert got["max_abs_eig"] == pytest.approx(rho, abs=1e-8)
         assert "n_unstable_nyquist" not in got
+    # a controller pole exactly at 1 + ε, decoupled (Bd = 0: the eigenvalue is exact): not
+    # counted, neither closed- nor open-loop (|z| > 1 + ε)
+    K = (np.array([[1.0 + eps]]), np.array([[0.0]]), np.array([[1.0]]), np.array([[0.0]]))
+    got = M.sampled_data_stability(model, np.array([[1.0]]), K, sign=-1.0, nyquist=False,
+                                   eps=eps)
+    assert got == {"n_unstable": 0, "max_abs_eig": 1.0 + eps, "n_open_unstable": 0}
 
 
 # --------------------------------------------------------------------- one frozen loop's row
