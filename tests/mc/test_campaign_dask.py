@@ -96,27 +96,59 @@ def test_scheduler_and_worker_processes_on_loopback(reference, scenario, tmp_pat
                 p.kill()
 
 
-def test_killed_campaign_resumes_without_reflying(reference, scenario, tmp_path):
+@pytest.fixture(scope="module")
+def long_scenario(tmp_path_factory):
+    """60 s flights (≈ 1 s of computing each): the killed campaign's samples come one by one."""
+    return write_short_scenario(tmp_path_factory.mktemp("scl"), "nominal", "nominal_mc_kill",
+                                40.0, 100.0)
+
+
+def _without_wall(row):
+    return {k: v for k, v in row.items() if k != "wall_s"}
+
+
+def test_killed_campaign_resumes_without_reflying(long_scenario, tmp_path):
+    """SIGKILL at an event — the first sample file written — then ``--resume``: the kept
+    samples are not flown again, the others are, and the resumed rows are the flights
+    themselves (flown again here in process, without the campaign machinery).
+
+    Until 2026-11-27 this test flew the 1 s flights of the other tests and killed at the second
+    sample: under the soak's load (two suites on two cores) the client wrote all six in one
+    burst before the kill came (soak round 2 of the sixth session). With 60 s flights the other
+    five take ≈ 5 s of the worker's computing after the first is written."""
+    from offline_synthesis.campaign import fly_sample
+    from offline_synthesis.campaign_run import SAMPLES_DIR
+
     out = tmp_path / "killed"
-    proc = subprocess.Popen(_mc("--scenario", scenario, "--runs", RUNS, "--seed", 4,
+    proc = subprocess.Popen(_mc("--scenario", long_scenario, "--runs", RUNS, "--seed", 4,
                                 "--workers", "1", "--out", out),
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             start_new_session=True)
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        if len(list((out / "samples").glob("*.json"))) >= 2 if (out / "samples").is_dir() else 0:
+    samples = out / SAMPLES_DIR
+    deadline = time.monotonic() + 300           # an event wait: the limit only ends a hang
+    while time.monotonic() < deadline and proc.poll() is None:
+        if samples.is_dir() and any(samples.glob("*.json")):
             break
-        time.sleep(0.05)
+        time.sleep(0.02)
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait(timeout=30)
-    kept = sorted(p.name for p in (out / "samples").glob("*.json"))
-    assert 2 <= len(kept) < RUNS, kept
-    mtimes = {p.name: p.stat().st_mtime_ns for p in (out / "samples").glob("*.json")}
+    kept = sorted(p.name for p in samples.glob("*.json"))
+    assert 1 <= len(kept) < RUNS, kept
+    mtimes = {p.name: p.stat().st_mtime_ns for p in samples.glob("*.json")}
     result = subprocess.run(_mc("--resume", out), capture_output=True, text=True, timeout=300)
     assert result.returncode in (0, 1), result.stderr
     assert f"{len(kept)} already flown, {RUNS - len(kept)} to fly" in result.stdout
-    assert all((out / "samples" / n).stat().st_mtime_ns == t for n, t in mtimes.items())
-    assert _rows(out) == _rows(reference)
+    assert all((samples / n).stat().st_mtime_ns == t for n, t in mtimes.items())
+    rows = pq.read_table(out / "results.parquet").to_pylist()
+    assert [r["sample"] for r in rows] == list(range(RUNS))
+    inputs = json.loads((out / "campaign.json").read_text())
+    resumed = [i for i in range(RUNS) if f"{i:06d}.json" not in kept]
+    for i in (resumed[0], resumed[-1]):
+        again = fly_sample(inputs["scenario_yaml"], inputs["table"], inputs["dispersions_yaml"],
+                           inputs["seed"], i)
+        written = json.loads((samples / f"{i:06d}.json").read_text())
+        assert json.dumps(_without_wall(written), sort_keys=True) == json.dumps(
+            _without_wall(json.loads(json.dumps(again))), sort_keys=True)
 
 
 @pytest.mark.parametrize("args, message", [
