@@ -721,6 +721,28 @@ def requirement_misses(detail) -> tuple[int, int, int, int, int]:
             int(detail.get("bending_exact_violations", 0)))
 
 
+def pool_map(fn, tasks: Sequence, workers: int):
+    """``map(fn, tasks)`` over ``workers`` spawned processes with one BLAS thread each (in
+    this process when ``workers`` ≤ 0 or there is one task); results in task order."""
+    if workers <= 0 or len(tasks) <= 1:
+        yield from map(fn, tasks)
+        return
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from offline_synthesis.margins import single_thread_blas
+
+    with single_thread_blas(), ProcessPoolExecutor(
+            max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        yield from pool.map(fn, tasks)
+
+
+def added_point_kept(tuned_cost: float, flown_cost: float) -> bool:
+    """Step 4's guard: a grid point tuned between two others is kept only where its cost on the
+    design set there is lower than that of the flown (interpolated) controller it replaces."""
+    return bool(tuned_cost < flown_cost)
+
+
 def _interval_task(args):
     """Walk the grid times strictly between two tuned anchors, left to right: start from the
     better of the interpolated parameters and the previous point's (continuation), and re-tune
@@ -766,12 +788,17 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
        (seeded with its walked and its neighbouring anchors' parameters); the better kept.
     4. The flown (interpolated) controller midway between grid points, on the design plants:
        where it misses a requirement, a grid point is added there (tuned from scratch, seeded
-       with its neighbours); repeated once for the new midpoints.
+       with its neighbours) if its cost is lower than the flown controller's there
+       (:func:`added_point_kept`); repeated once for the new midpoints.
     5. From :data:`TAIL_OFF_HOLD_S` on, one controller (the tail-off), tuned jointly on the
        design sets of :data:`TAIL_DESIGN_TIMES_S` (:func:`hold_tail`).
     6. The drift-rate gain × ``drift_scale`` from :data:`DRIFT_SCALE_FROM_S` on, where the
        scaled point adds no requirement miss, on the design sets and (``drift_worst_case``) at
        `vega robust`'s worst case between grid points (:func:`scale_drift`).
+
+    Step 7, the single-parameter repairs of the bending criterion at the dispersed corners, is
+    :func:`.corner_repair.repair_design` (it imports this module); `vega design` applies it
+    to the result.
 
     With ``repair``, the given ``anchor_x`` (e.g. every grid point of an earlier table) are
     kept where they meet every requirement and go through step 3 where they do not: a repair
@@ -793,17 +820,7 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
     done: dict[float, tuple] = {}
 
     def _pool_map(fn, tasks):
-        if workers <= 0 or len(tasks) <= 1:
-            yield from map(fn, tasks)
-            return
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
-        from offline_synthesis.margins import single_thread_blas
-
-        with single_thread_blas(), ProcessPoolExecutor(
-                max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-            yield from pool.map(fn, tasks)
+        return pool_map(fn, tasks, workers)
 
     for t, x, cost, detail in _pool_map(_anchor_task, anchor_tasks):
         results[t] = (x, detail)
@@ -836,23 +853,33 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
         progress(_line("from scratch", t, cost, detail))
     # 4. the flown controller between grid points (interpolated as the runtime does): where
     #    it misses a requirement, a grid point is added there and tuned (twice at most)
+    #    — kept only where its tuning is better than the flown controller it replaces there
+    #    (2026-11-27: an unguarded step added lift-off points worse than the interpolation)
+    refused: set = set()
     for _ in range(2 if check_between else 0):
         times = sorted(done)
-        missing = []
+        missing, flown_cost = [], {}
         for a, b in zip(times[:-1], times[1:]):
             t_mid = 0.5 * (a + b)
-            if t_mid > TAIL_OFF_HOLD_S:
-                continue                     # one held controller there (step 5)
+            if t_mid > TAIL_OFF_HOLD_S or t_mid in refused:
+                continue                     # one held controller there (step 5); or tried
             ds = design_set(context, t_mid, uset)
             K = flown_between(context, (a, done[a][0]), (b, done[b][0]), t_mid)
-            if misses_requirement(evaluate_discrete(K, ds, detail=True)[1]):
+            flown, flown_detail = evaluate_discrete(K, ds, detail=True)
+            if misses_requirement(flown_detail):
+                flown_cost[t_mid] = flown
                 missing.append((t_mid, seed + 3000 + len(done) + len(missing), maxiter,
                                 popsize, polish_maxfev, done[a][0], done[b][0]))
         if not missing:
             break
         for t, x, cost, detail in _pool_map(_anchor_task, missing):
-            done[t] = (x, detail, "added between grid points")
-            progress(_line("added", t, cost, detail))
+            if added_point_kept(cost, flown_cost[t]):
+                done[t] = (x, detail, "added between grid points")
+                progress(_line("added", t, cost, detail))
+            else:
+                refused.add(t)
+                progress(_line(f"not added (flown controller's cost {flown_cost[t]:.3f} is "
+                               "lower)", t, cost, detail))
     # 5. the tail-off: one controller from TAIL_OFF_HOLD_S on, tuned on all its times jointly
     if TAIL_OFF_HOLD_S in done:
         done = hold_tail(context, done, seed=seed + 4000, progress=progress)

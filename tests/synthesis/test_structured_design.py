@@ -289,3 +289,45 @@ def test_exact_band_criterion_agrees_with_the_margin_tool(gain, phase_deg, ok):
     assert (gm_miss[0] == 0.0 and pm_miss[0] == 0.0) == ok
     assert gm_miss[0] == pytest.approx(max(6.0 - row["b1_gm_db"], 0.0), abs=0.02)
     assert pm_miss[0] == pytest.approx(max(30.0 - row["b1_pm_deg"], 0.0), abs=0.2)
+
+
+def _shipped_points(*times):
+    import json
+    from pathlib import Path
+
+    table = (Path(__file__).resolve().parents[2]
+             / "ros2_ws/src/vega_gnc/config/tvc_controller.npz")
+    meta = json.loads(str(np.load(table)["metadata"]))
+    by_time = dict(zip(meta["grid_times_s"], meta["parameters_per_grid_time"]))
+    return {t: by_time[t] for t in times}
+
+
+def test_step4_adds_a_point_only_where_it_beats_the_flown_controller(context, uset,
+                                                                      monkeypatch):
+    """Step 4's guard: between the shipped 44 and 46 s points the flown controller misses a
+    requirement at 45 s; a tuning that returns a worse controller there (k_θ = 0.05: unstable
+    at max-Q) is not added, and the grid stays 44, 46 s."""
+    anchors = _shipped_points(44.0, 46.0)
+    ds45 = S.design_set(context, 45.0, uset)
+    flown = S.flown_between(context, (44.0, anchors[44.0]), (46.0, anchors[46.0]), 45.0)
+    flown_cost, flown_detail = S.evaluate_discrete(flown, ds45, detail=True)
+    assert S.misses_requirement(flown_detail)            # step 4 looks at 45 s
+    bad = _x(log10_k_theta=math.log10(0.05))
+    calls = []
+
+    def worse_tuning(args):
+        t_s = args[0]
+        calls.append(t_s)
+        cost, detail = S.evaluate(bad, S.design_set(context, t_s, uset), detail=True)
+        return t_s, bad, cost, detail
+
+    monkeypatch.setattr(S, "_anchor_task", worse_tuning)
+    lines = []
+    design = S.design_flight(context, anchors_s=(44.0, 46.0), grid_step_s=2.0, workers=0,
+                             anchor_x=anchors, progress=lines.append)
+    assert calls == [45.0]
+    np.testing.assert_array_equal(design.grid_times_s, [44.0, 46.0])
+    assert any(line.startswith("not added") and "t = 45 s" in line for line in lines)
+    assert S.evaluate(bad, ds45) > flown_cost
+    assert S.added_point_kept(flown_cost - 1e-9, flown_cost)
+    assert not S.added_point_kept(flown_cost, flown_cost)
