@@ -23,6 +23,14 @@ LPV = Path(__file__).resolve().parents[2] / "ros2_ws/src/vega_gnc/config/lpv_con
     (["--out", "{d}/t.npz", "--tail-from", str(LPV)], "--tail-from"),
     (["--out", "{d}/t.npz", "--repair-from", str(LPV), "--tail-from", str(LPV)],
      "--repair-from and --tail-from: give one of them"),
+    (["--out", "{d}/t.npz", "--corner-repair-from", str(LPV)],
+     f"--corner-repair-from {LPV}: not a structured design table"),
+    (["--out", "{d}/t.npz", "--drift-from", str(LPV), "--corner-repair-from", str(LPV)],
+     "--drift-from and --corner-repair-from: give one of them"),
+    (["--out", "{d}/t.npz", "--drift-from", str(LPV), "--no-corner-repair"],
+     "--no-corner-repair with --drift-from: that option runs one step only"),
+    (["--out", "{d}/t.npz", "--corner-repair-from", str(LPV), "--no-corner-repair"],
+     "--no-corner-repair with --corner-repair-from"),
 ])
 def test_bad_arguments(tmp_path, capsys, args, message):
     assert_refused(["design", *(a.replace("{d}", str(tmp_path)) for a in args)], capsys,

@@ -12,8 +12,11 @@ anchors took ≈ 25 min, the grid walk ≈ 13 min, rescue and added points ≈ 2
 ``--repair-from TABLE`` keeps every grid point of an earlier table that meets the current
 requirements and re-tunes the others; ``--tail-from TABLE`` keeps every grid point before the
 tail-off and re-tunes only the one tail-off controller, jointly over 86–100 s; ``--drift-from
-TABLE`` applies only the last step, the drift-rate gain after max-Q) and verify it
-with ``vega margins --dispersed`` and ``vega robust``. Exit 0, or 2 on bad input.
+TABLE`` applies only step 6, the drift-rate gain after max-Q; ``--corner-repair-from TABLE``
+only step 7, the single-parameter repairs of the bending criterion at the dispersed corners,
+:mod:`offline_synthesis.corner_repair`, which a full run applies last unless
+``--no-corner-repair``) and verify it with ``vega margins --dispersed`` and ``vega robust``.
+Exit 0, or 2 on bad input.
 """
 
 from __future__ import annotations
@@ -30,8 +33,11 @@ __all__ = ["register"]
 def _run(args: argparse.Namespace) -> int:
     import json
     import time
+
+    import numpy as np
     from vega_model.parameters import default_context
 
+    from offline_synthesis.corner_repair import repair_design
     from offline_synthesis.margins import json_ready
     from offline_synthesis.structured import (
         PARAMETERS, TAIL_OFF_HOLD_S, design_flight, rescale_drift, retune_tail,
@@ -50,10 +56,15 @@ def _run(args: argparse.Namespace) -> int:
     given = [o for o, v in (("--anchors-from", args.anchors_from),
                             ("--repair-from", args.repair_from),
                             ("--tail-from", args.tail_from),
-                            ("--drift-from", args.drift_from)) if v]
+                            ("--drift-from", args.drift_from),
+                            ("--corner-repair-from", args.corner_repair_from)) if v]
     if len(given) > 1:
         raise BadArgument(f"{' and '.join(given)}: give one of them")
-    source_path = args.anchors_from or args.repair_from or args.tail_from or args.drift_from
+    if args.no_corner_repair and (given and not args.anchors_from and not args.repair_from):
+        raise BadArgument(f"--no-corner-repair with {given[0]}: that option runs one step "
+                          "only, and never the corner repair (or it is the corner repair)")
+    source_path = (args.anchors_from or args.repair_from or args.tail_from or args.drift_from
+                   or args.corner_repair_from)
     option = given[0] if given else None
     if source_path:
         from vega_gnc.controller_table import load_controller_table
@@ -65,7 +76,8 @@ def _run(args: argparse.Namespace) -> int:
             raise BadArgument(f"{option} {source_path}: not a structured design "
                               "table (no tuned parameters in its metadata)")
         by_time = dict(zip(meta["grid_times_s"], meta["parameters_per_grid_time"]))
-        grid = args.repair_from or args.tail_from or args.drift_from
+        grid = (args.repair_from or args.tail_from or args.drift_from
+                or args.corner_repair_from)
         used = meta["grid_times_s"] if grid else meta["anchors_s"]
         if any(t not in by_time or len(by_time[t]) != len(PARAMETERS) for t in used):
             raise BadArgument(f"{option} {source_path}: its "
@@ -81,10 +93,21 @@ def _run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     context = default_context()
     kwargs = {"anchors_s": sorted(anchor_x)} if args.repair_from else {}
-    if args.tail_from or args.drift_from:
+    if args.tail_from or args.drift_from or args.corner_repair_from:
         tuning = {k: v for k, v in meta.get("solver", {}).items()
                   if k not in ("method", "scipy")}
-    if args.drift_from:
+    if args.corner_repair_from:
+        from offline_synthesis.structured import StructuredDesign
+
+        times = sorted(anchor_x)
+        design = StructuredDesign(
+            np.array(times), np.array([context.parameters(t).v_mps for t in times]),
+            np.array([anchor_x[t] for t in times], dtype=float), [None] * len(times),
+            tuple(meta["anchors_s"]), tuning)
+        design = repair_design(context, design, workers=args.workers,
+                               worst_case=worst_case_bending_ok,
+                               progress=lambda line: print(line, flush=True))
+    elif args.drift_from:
         design = rescale_drift(context, sorted(anchor_x),
                                [anchor_x[t] for t in sorted(anchor_x)], meta["anchors_s"],
                                tuning, progress=lambda line: print(line, flush=True),
@@ -99,6 +122,10 @@ def _run(args: argparse.Namespace) -> int:
                                repair=bool(args.repair_from), **kwargs,
                                drift_worst_case=worst_case_bending_ok,
                                progress=lambda line: print(line, flush=True))
+        if not args.no_corner_repair:
+            design = repair_design(context, design, workers=args.workers,
+                                   worst_case=worst_case_bending_ok,
+                                   progress=lambda line: print(line, flush=True))
     table = write_structured_table(out, design, context)
     report = {"table": str(out), "run_time_s": time.perf_counter() - start,
               "grid_times_s": design.grid_times_s, "grid_v_mps": design.grid_v_mps,
@@ -142,6 +169,14 @@ def register(subparsers) -> None:
                         "the last design step, the drift-rate gain scaled after max-Q where "
                         "the scaled point still meets every requirement (docs/FLIGHT_DESIGN.md "
                         "section 4, step 6; a few minutes)")
+    p.add_argument("--corner-repair-from", metavar="TABLE",
+                   help="keep every grid point of an earlier structured table and apply only "
+                        "step 7: single-parameter repairs where the flown controller misses "
+                        "the bending criterion at a dispersed corner of vega margins "
+                        "--dispersed (docs/FLIGHT_DESIGN.md section 4; ~6 min on 2 cores "
+                        "plus ~0.5 min per repaired point)")
+    p.add_argument("--no-corner-repair", action="store_true",
+                   help="a full run (or --anchors-from / --repair-from) without step 7")
     p.add_argument("--workers", type=int, default=2,
                    help="processes for the anchors (default 2; 0 = in this process)")
     p.set_defaults(func=_run)
