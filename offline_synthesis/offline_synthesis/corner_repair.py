@@ -39,9 +39,9 @@ at 34.5 s) removed the misses. This step is that practice written down as a rule
 
 Candidates are screened on the missed (time, corner) loops alone (a few loops each); only those
 that remove a miss there get the full check (all corners of both intervals). The tail-off
-(from 86 s, one controller held over several grid points) is not edited here: a miss there is
-reported. Cost on two cores: the check of the whole flight ≈ 6 min at load ≈ 1 (as `vega
-margins --dispersed`), then ≈ 0.5 min per repaired point.
+(from 86 s, one controller held over several grid points, the 86 s point included) is not
+edited here: a miss there is reported. Cost on two cores: the check of the whole flight
+≈ 6 min at load ≈ 1 (as `vega margins --dispersed`), then ≈ 0.5 min per repaired point.
 """
 
 from __future__ import annotations
@@ -239,7 +239,8 @@ def repair_corner_bending(context, done: Mapping[float, tuple],
     say = progress or (lambda line: None)
     done = dict(done)
     times = sorted(done)
-    editable = [t for t in times if t <= until_s + 1e-9]
+    # the hold point itself is not edited: the grid points after it hold the same controller
+    editable = [t for t in times if t < until_s - 1e-9]
     if rows is None:
         rows = check_intervals(context, done, ids, until_s, workers, progress)
     by_left = {float(a): list(r) for a, r in rows.items()}

@@ -154,3 +154,15 @@ def test_the_worst_case_check_refuses_an_edit_that_loses_it(context, monkeypatch
                                           worst_case=only_unedited)
     assert record["edits"] == [] and record["misses_after"] == 2
     assert record["worst_case_checked"] is True
+
+
+def test_the_tail_off_hold_point_is_not_edited(context):
+    """A miss flown by the held tail-off controller alone (at the hold time itself) is
+    reported, not repaired: the points after it hold the same controller."""
+    done, _, _ = _done_before_43_edit()
+    # the 42.5–44 s points as if 43 s were the hold time: the misses at 43 s are flown by the
+    # hold point alone; 42.5 s could only change what flies in (42.5, 43) s, where none is
+    new, record = R.repair_corner_bending(context, {t: done[t] for t in (42.5, 43.0)},
+                                          corner_ids=CORNERS, until_s=43.0, workers=0)
+    assert record["edits"] == [] and record["misses_after"] == 2
+    assert np.array_equal(new[43.0][0], done[43.0][0])
