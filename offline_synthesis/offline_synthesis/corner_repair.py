@@ -10,10 +10,9 @@ the exact bending criterion missed at a few times, and three single-parameter ha
 at 34.5 s) removed the misses. This step is that practice written down as a rule, so that one
 `vega design` run makes a table the verification passes, with no hand edit:
 
-1. **Check.** Between every two neighbouring grid points up to the tail-off hold
-   (:data:`.structured.TAIL_OFF_HOLD_S`), the flown controller at every time of the 0.5 s
-   grid (:func:`.structured.worst_case_times`; the first grid time too), at every corner of
-   :func:`.margins.dispersed_corners`. A *miss* is a (time, corner, criterion) where
+1. **Check.** Between every two neighbouring grid points, the flown controller at every
+   time of the 0.5 s grid (:func:`.structured.worst_case_times`; the first grid time too),
+   at every corner of :func:`.margins.dispersed_corners`. A *miss* is a (time, corner, criterion) where
    the loop is unstable or a mode misses :func:`.margins.bending_ok` (≤ −6 dB, or
    phase-stabilised with ≥ 6 dB / 30° in its band: the heritage criterion of the margin table).
 2. **Candidates.** For a grid point next to a missed time, one parameter moved at a time
@@ -39,8 +38,8 @@ at 34.5 s) removed the misses. This step is that practice written down as a rule
 
 Candidates are screened on the missed (time, corner) loops alone (a few loops each); only those
 that remove a miss there get the full check (all corners of both intervals). The tail-off
-(from 86 s, one controller held over several grid points, the 86 s point included) is not
-edited here: a miss there is reported. Cost on two cores: the check of the whole flight
+(from 86 s, one controller held over several grid points, the 86 s point included) is checked
+but not edited here: a miss there is reported in the record. Cost on two cores: the check of the whole flight
 ≈ 6 min at load ≈ 1 (as `vega margins --dispersed`), then ≈ 0.5 min per repaired point.
 """
 
@@ -241,8 +240,8 @@ def repair_corner_bending(context, done: Mapping[float, tuple],
     times = sorted(done)
     # the hold point itself is not edited: the grid points after it hold the same controller
     editable = [t for t in times if t < until_s - 1e-9]
-    if rows is None:
-        rows = check_intervals(context, done, ids, until_s, workers, progress)
+    if rows is None:        # the whole flight is checked; the tail-off misses are reported
+        rows = check_intervals(context, done, ids, math.inf, workers, progress)
     by_left = {float(a): list(r) for a, r in rows.items()}
     first = times[0]
 
