@@ -12,9 +12,10 @@ at 34.5 s) removed the misses. This step is that practice written down as a rule
 
 1. **Check.** Between every two neighbouring grid points, the flown controller at every
    time of the 0.5 s grid (:func:`.structured.worst_case_times`; the first grid time too),
-   at every corner of :func:`.margins.dispersed_corners`. A *miss* is a (time, corner, criterion) where
-   the loop is unstable or a mode misses :func:`.margins.bending_ok` (≤ −6 dB, or
-   phase-stabilised with ≥ 6 dB / 30° in its band: the heritage criterion of the margin table).
+   at every corner of :func:`.margins.dispersed_corners`. A *miss* is a (time, corner,
+   criterion) where the loop is unstable or a mode misses :func:`.margins.bending_ok`
+   (≤ −6 dB, or phase-stabilised with ≥ 6 dB / 30° in its band: the heritage criterion of
+   the margin table).
 2. **Candidates.** For a grid point next to a missed time, one parameter moved at a time
    (:data:`EDITS`, chosen from the hand edits and what they tried: the notch made deeper
    (its numerator damping × 0.85 or × 0.7), the low-pass corner lowered by 3.4 % or 6.7 %
@@ -39,8 +40,9 @@ at 34.5 s) removed the misses. This step is that practice written down as a rule
 Candidates are screened on the missed (time, corner) loops alone (a few loops each); only those
 that remove a miss there get the full check (all corners of both intervals). The tail-off
 (from 86 s, one controller held over several grid points, the 86 s point included) is checked
-but not edited here: a miss there is reported in the record. Cost on two cores: the check of the whole flight
-≈ 6 min at load ≈ 1 (as `vega margins --dispersed`), then ≈ 0.5 min per repaired point.
+but not edited here: a miss there is reported in the record. Cost on two cores: the check of
+the whole flight ≈ 6 min at load ≈ 1 (as `vega margins --dispersed`), then ≈ 0.5 min per
+repaired point.
 """
 
 from __future__ import annotations
