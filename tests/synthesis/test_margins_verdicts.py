@@ -369,7 +369,9 @@ def test_summarise_dispersed_families_by_hand():
     assert rig["requirements"]["gm_low_db"]["worst"] == 4.0
     assert rig["requirements"]["gm_low_db"]["deviations"] == {"thrust": 0.05}
     assert rig["dispersed_criterion"]["gm_low_db"]["pass"] is True
+    assert rig["dispersed_criterion"]["gm_low_db"]["deviations"] == {"thrust": 0.05}
     assert rig["requirements_controller_not_clamped"]["gm_low_db"]["worst"] == 5.0
+    assert rig["requirements_controller_not_clamped"]["gm_low_db"]["family"] == "rigid"
     assert rig["requirements_controller_not_clamped"]["stability"]["n_loops"] == 1
     ben = fams["bending"]
     assert ben["requirements"]["bending_1"]["pass"] is False
