@@ -530,3 +530,17 @@ def test_max_q_time_against_the_raw_table():
     k = max(range(len(q)), key=lambda i: q[i])
     assert M.max_q_time(default_context()) == t[k]
     assert 30.0 < t[k] < 70.0 and q[k] > q[0] and q[k] > q[-1]
+
+
+def test_frequency_grid_when_1_5_omega_2_is_exactly_the_top():
+    """1.5 ω₂ exactly at π/T·(1 − 1e-9): the grid ends there, no repeated top samples."""
+    T = 0.02
+    top = math.pi / T * (1.0 - 1e-9)
+    w2 = top / 1.5
+    for _ in range(50):
+        if 1.5 * w2 == top:
+            break
+        w2 = np.nextafter(w2, np.inf if 1.5 * w2 < top else -np.inf)
+    assert 1.5 * w2 == top
+    w = M.frequency_grid((30.0, w2), T, 10, 20, 5)
+    assert w.size == 30 and w[-1] == top and np.all(np.diff(w) > 0)
