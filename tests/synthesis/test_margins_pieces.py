@@ -83,7 +83,7 @@ def test_transfer_of_a_jordan_block():
 
 def test_transfer_of_no_states():
     got = M._transfer(np.zeros((0, 0)), np.zeros((0, 3)), np.zeros((2, 0)), [1j, 2j])
-    assert got.shape == (2, 2, 3) and not np.any(got)
+    assert got.shape == (2, 2, 3) and not np.any(got) and got.dtype == complex
     K = M.discrete_response(np.zeros((0, 0)), np.zeros((0, 2)), np.zeros((1, 0)),
                             [[2.0, -1.0]], [0.0, 3.0], 0.02)
     assert np.array_equal(K, np.array([[[2.0, -1.0]], [[2.0, -1.0]]]))
