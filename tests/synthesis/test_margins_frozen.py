@@ -28,20 +28,6 @@ ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = ROOT / "ros2_ws" / "src" / "vega_gnc" / "config" / "lpv_controller.npz"
 
 
-@pytest.fixture(scope="module")
-def context():
-    from vega_model.parameters import default_context
-
-    return default_context()
-
-
-@pytest.fixture(scope="module")
-def table():
-    from vega_gnc.controller_table import load_controller_table
-
-    return load_controller_table(SHIPPED)
-
-
 def _scaled(table, k, index=None):
     """The table with its controller outputs (Cd, Dd) × k: at every grid point, or at
     ``index`` only."""

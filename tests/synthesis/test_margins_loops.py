@@ -151,20 +151,6 @@ def test_stability_count_on_the_circle_boundary():
 
 
 # --------------------------------------------------------------------- one frozen loop's row
-@pytest.fixture(scope="module")
-def context():
-    from vega_model.parameters import default_context
-
-    return default_context()
-
-
-@pytest.fixture(scope="module")
-def table():
-    from vega_gnc.controller_table import load_controller_table
-
-    return load_controller_table(SHIPPED)
-
-
 def test_analyse_time_row_fields(table, context):
     """The row's plant fields are the perturbed parameters, the actuator of the vehicle data
     × (1 + δ), the vehicle's three delays + δ; the controller stays on the nominal schedule

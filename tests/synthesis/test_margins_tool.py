@@ -38,20 +38,6 @@ SHIPPED = ROOT / "ros2_ws" / "src" / "vega_gnc" / "config" / "lpv_controller.npz
 W = np.geomspace(1e-3, 1e3, 40_000)
 
 
-@pytest.fixture(scope="module")
-def context():
-    from vega_model.parameters import default_context
-
-    return default_context()
-
-
-@pytest.fixture(scope="module")
-def table():
-    from vega_gnc.controller_table import load_controller_table
-
-    return load_controller_table(SHIPPED)
-
-
 # ------------------------------------------------------------------- margins, textbook loops
 def _stable(num, den, g):
     num = np.concatenate([np.zeros(len(den) - len(num)), num])
