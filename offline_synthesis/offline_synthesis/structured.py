@@ -721,20 +721,46 @@ def requirement_misses(detail) -> tuple[int, int, int, int, int]:
             int(detail.get("bending_exact_violations", 0)))
 
 
-def pool_map(fn, tasks: Sequence, workers: int):
+def pool_map(fn, tasks: Sequence, workers: int, journal=None):
     """``map(fn, tasks)`` over ``workers`` spawned processes with one BLAS thread each (in
-    this process when ``workers`` ≤ 0 or there is one task); results in task order."""
-    if workers <= 0 or len(tasks) <= 1:
-        yield from map(fn, tasks)
+    this process when ``workers`` ≤ 0 or there is one task to run); results in task order.
+
+    With a ``journal`` (:class:`.task_journal.TaskJournal`), a task whose result it holds is not
+    run again, and every result is recorded the moment its task finishes (not in task order:
+    a kill loses only the tasks still running)."""
+    from offline_synthesis.task_journal import task_key
+
+    tasks = list(tasks)
+    keys = [None if journal is None else task_key(fn, task) for task in tasks]
+    todo = {i for i, key in enumerate(keys) if key is None or key not in journal}
+
+    def finished(i, result):
+        if keys[i] is not None:
+            journal.record(keys[i], result)
+        return result
+
+    if workers <= 0 or len(todo) <= 1:
+        for i, task in enumerate(tasks):
+            yield finished(i, fn(task)) if i in todo else journal.get(keys[i])
         return
     import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     from offline_synthesis.margins import single_thread_blas
 
     with single_thread_blas(), ProcessPoolExecutor(
             max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        yield from pool.map(fn, tasks)
+        futures = {pool.submit(fn, tasks[i]): i for i in sorted(todo)}
+        pending, results = set(futures), {}
+        for i in range(len(tasks)):
+            if i not in todo:
+                yield journal.get(keys[i])
+                continue
+            while i not in results:
+                done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    results[futures[future]] = finished(futures[future], future.result())
+            yield results.pop(i)
 
 
 def added_point_kept(tuned_cost: float, flown_cost: float) -> bool:
@@ -774,8 +800,8 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
                   local_maxiter: int = 30, anchor_x: Mapping[float, Sequence[float]] | None = None,
                   check_between: bool = True, repair: bool = False,
                   drift_scale: float = DRIFT_RATE_SCALE,
-                  drift_worst_case: Callable[[object, object, float], bool] | None = None
-                  ) -> StructuredDesign:
+                  drift_worst_case: Callable[[object, object, float], bool] | None = None,
+                  journal=None) -> StructuredDesign:
     """Tune the whole flight.
 
     1. The anchors: differential evolution from scratch (``maxiter`` generations; in
@@ -806,6 +832,9 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
 
     The tuning tasks (steps 1–4, run in spawned processes) build the default model context
     themselves; ``context`` is used for the checks made here and must be that default one.
+    With a ``journal`` (:class:`.task_journal.TaskJournal`) the tasks of steps 1–5 that
+    finished in an earlier, interrupted run of the same code and arguments are reused, not run
+    again: the result is the uninterrupted run's.
     """
     from vega_model.uncertainty import UncertaintySet
 
@@ -820,7 +849,7 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
     done: dict[float, tuple] = {}
 
     def _pool_map(fn, tasks):
-        return pool_map(fn, tasks, workers)
+        return pool_map(fn, tasks, workers, journal=journal)
 
     for t, x, cost, detail in _pool_map(_anchor_task, anchor_tasks):
         results[t] = (x, detail)
@@ -882,7 +911,7 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
                                "lower)", t, cost, detail))
     # 5. the tail-off: one controller from TAIL_OFF_HOLD_S on, tuned on all its times jointly
     if TAIL_OFF_HOLD_S in done:
-        done = hold_tail(context, done, seed=seed + 4000, progress=progress)
+        done = hold_tail(context, done, seed=seed + 4000, progress=progress, journal=journal)
     # 6. the drift-rate gain after max-Q (load/drift split by dynamic pressure)
     done = scale_drift(context, done, drift_scale, progress=progress,
                        worst_case=drift_worst_case)
@@ -900,20 +929,33 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
 
 
 def hold_tail(context, done: Mapping[float, tuple], seed: int = 4000,
-              progress: Callable[[str], None] | None = None, **tail_options) -> dict:
+              progress: Callable[[str], None] | None = None, journal=None,
+              **tail_options) -> dict:
     """Step 5 of :func:`design_flight`: the controller of every grid time from
     :data:`TAIL_OFF_HOLD_S` on is one controller, tuned jointly over the tail-off
     (:func:`tune_tail`) from the parameters at :data:`TAIL_OFF_HOLD_S`, the flown transition
     from the last grid point before it included; ``done`` maps time → (x, detail, how).
+    With a ``journal``, the tuning's result is recorded, or reused when recorded before.
     Returns the updated copy."""
     from vega_model.uncertainty import UncertaintySet
+
+    from offline_synthesis.task_journal import task_key
 
     uset = UncertaintySet.from_vehicle(context.vehicle)
     done = dict(done)
     before = [t for t in done if t < TAIL_OFF_HOLD_S]
     left = (max(before), done[max(before)][0]) if before else None
-    x, _, _ = tune_tail(context, done[TAIL_OFF_HOLD_S][0], seed=seed, left=left,
-                        progress=progress, **tail_options)
+    x_hold = np.asarray(done[TAIL_OFF_HOLD_S][0], dtype=float)
+    key = None if journal is None else task_key(tune_tail, (x_hold, seed, left, tail_options))
+    if key is not None and key in journal:
+        x = journal.get(key)
+        if progress is not None:
+            progress("tail-off joint tuning: reused from the journal")
+    else:
+        x, _, _ = tune_tail(context, x_hold, seed=seed, left=left, progress=progress,
+                            **tail_options)
+        if key is not None:
+            journal.record(key, x)
     for t in [t for t in done if t >= TAIL_OFF_HOLD_S]:
         detail = evaluate(x, design_set(context, t, uset), detail=True)[1]
         done[t] = (x, detail, f"held from {TAIL_OFF_HOLD_S:g} s (tail-off, tuned jointly)")

@@ -31,11 +31,31 @@ LPV = Path(__file__).resolve().parents[2] / "ros2_ws/src/vega_gnc/config/lpv_con
      "--no-corner-repair with --drift-from: that option runs one step only"),
     (["--out", "{d}/t.npz", "--corner-repair-from", str(LPV), "--no-corner-repair"],
      "--no-corner-repair with --corner-repair-from"),
+    (["--out", "{d}/t.npz", "--drift-from", str(LPV), "--journal", "{d}/j.jsonl"],
+     "--journal with --drift-from: only the tuning of a full run"),
+    (["--out", "{d}/t.npz", "--journal", "{d}"], "is a directory"),
 ])
 def test_bad_arguments(tmp_path, capsys, args, message):
     assert_refused(["design", *(a.replace("{d}", str(tmp_path)) for a in args)], capsys,
                    message)
     assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("journal_text, message", [
+    ("# my notes\n", "line 1 is not a 'vega design task journal' header"),
+    ('{"format": "vega design task journal", "version": 1, "code": "0123456789abcdef"}\n',
+     "written by other design code (digest 0123456789ab"),
+])
+def test_a_foreign_journal_is_refused_before_any_tuning(tmp_path, capsys, journal_text,
+                                                        message):
+    """The default journal next to --out (FILE.journal.jsonl) holding something else: one line,
+    exit 2, the file untouched, no table written."""
+    journal = tmp_path / "t.journal.jsonl"
+    journal.write_text(journal_text)
+    assert_refused(["design", "--out", str(tmp_path / "t.npz")], capsys,
+                   f"design journal {journal}: {message}")
+    assert journal.read_text() == journal_text
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.journal.jsonl"]
 
 
 def _shipped_with(tmp_path, edit):

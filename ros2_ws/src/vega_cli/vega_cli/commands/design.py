@@ -6,8 +6,11 @@ burn-out; in parallel, ``--workers``), parameters carried to a 2 s grid and re-t
 they miss a requirement, then the table in the controller-table format (``design:
 structured``) and its JSON report (``FILE.json``). The product flies the committed copy,
 ``vega_gnc/config/tvc_controller.npz``; regenerate it with ``--out
-ros2_ws/src/vega_gnc/config/tvc_controller.npz`` (not timed as one run: on 2 cores the
-anchors took ≈ 25 min, the grid walk ≈ 13 min, rescue and added points ≈ 20 min;
+ros2_ws/src/vega_gnc/config/tvc_controller.npz`` (hours on 2 cores: with the 222-plant design
+set an anchor takes ≈ 10 min of one core, the 11 anchors ≈ 55 min; every finished tuning task
+is written to a journal, ``FILE.journal.jsonl`` next to ``--out`` or ``--journal``, and the
+same command started again after an interruption reuses it and gives the uninterrupted run's
+table — :mod:`offline_synthesis.task_journal`;
 ``--anchors-from TABLE`` reuses an earlier table's anchors and re-tunes only the grid;
 ``--repair-from TABLE`` keeps every grid point of an earlier table that meets the current
 requirements and re-tunes the others; ``--tail-from TABLE`` keeps every grid point before the
@@ -22,6 +25,7 @@ Exit 0, or 2 on bad input.
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from vega_core.errors import BadArgument
 
@@ -60,6 +64,11 @@ def _run(args: argparse.Namespace) -> int:
                             ("--corner-repair-from", args.corner_repair_from)) if v]
     if len(given) > 1:
         raise BadArgument(f"{' and '.join(given)}: give one of them")
+    if args.journal and (args.tail_from or args.drift_from or args.corner_repair_from):
+        raise BadArgument(f"--journal with {given[0]}: only the tuning of a full run, "
+                          "--anchors-from or --repair-from is journalled")
+    if args.journal and Path(args.journal).is_dir():
+        raise BadArgument(f"--journal {args.journal}: is a directory")
     if args.no_corner_repair and (given and not args.anchors_from and not args.repair_from):
         raise BadArgument(f"--no-corner-repair with {given[0]}: that option runs one step "
                           "only, and never the corner repair (or it is the corner repair)")
@@ -117,10 +126,18 @@ def _run(args: argparse.Namespace) -> int:
                              meta["anchors_s"], tuning, seed=args.seed + 4000,
                              progress=lambda line: print(line, flush=True))
     else:
+        from offline_synthesis.task_journal import TaskJournal
+
+        journal_path = (Path(args.journal) if args.journal
+                        else out.with_suffix(".journal.jsonl"))
+        journal = TaskJournal(journal_path)          # BadFile (other code, damaged): exit 2
+        print(f"journal {journal_path}: {len(journal)} finished tasks"
+              + (" (reused where the same task comes again)" if len(journal) else ""),
+              flush=True)
         design = design_flight(context, seed=args.seed, maxiter=args.maxiter,
                                workers=args.workers, anchor_x=anchor_x,
                                repair=bool(args.repair_from), **kwargs,
-                               drift_worst_case=worst_case_bending_ok,
+                               drift_worst_case=worst_case_bending_ok, journal=journal,
                                progress=lambda line: print(line, flush=True))
         if not args.no_corner_repair:
             design = repair_design(context, design, workers=args.workers,
@@ -177,6 +194,11 @@ def register(subparsers) -> None:
                         "plus ~0.5 min per repaired point)")
     p.add_argument("--no-corner-repair", action="store_true",
                    help="a full run (or --anchors-from / --repair-from) without step 7")
+    p.add_argument("--journal", metavar="FILE",
+                   help="journal of finished tuning tasks (default: the --out file with the "
+                        "suffix .journal.jsonl): a run interrupted and started again with the "
+                        "same journal reuses them and gives the uninterrupted run's table "
+                        "(full runs, --anchors-from, --repair-from)")
     p.add_argument("--workers", type=int, default=2,
                    help="processes for the anchors (default 2; 0 = in this process)")
     p.set_defaults(func=_run)
