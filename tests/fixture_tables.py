@@ -23,7 +23,13 @@ import numpy as np
 if TYPE_CHECKING:
     from vega_gnc.controller_table import ControllerTable
 
-__all__ = ["DESIGN_TIMES", "write_pd_table", "write_gain_table"]
+__all__ = ["DESIGN_TIMES", "STRUCTURED_2026_11_27", "write_pd_table", "write_gain_table"]
+
+STRUCTURED_2026_11_27 = Path(__file__).resolve().parent / "data" / "tvc_controller_2026-11-27.npz"
+"""A frozen copy of the structured table shipped from 2026-11-27 (sixth session; commit
+019a54c): the real cases the design tools are tested on — its tuning record's hand edits (43 s),
+its drift step, its 44/46 s points around max-Q, its tail-off — stay what the tests say when the
+shipped table (vega_gnc/config/tvc_controller.npz) is replaced by a newer design."""
 
 DESIGN_TIMES = (2, 5, 10, 20, 30, 40, 50, 60, 70, 80, 90, 92, 94, 96, 98, 100)
 """Flight times [s] whose velocities are the PD table's scheduling grid."""

@@ -8,7 +8,6 @@ FLIGHT_DESIGN.md §4), which step 7 must find and repair, on real frozen loops.
 """
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,9 +16,9 @@ from vega_model.parameters import default_context
 from offline_synthesis import corner_repair as R
 from offline_synthesis import structured as S
 from offline_synthesis.margins import REQUIREMENTS, bending_ok
+from fixture_tables import STRUCTURED_2026_11_27
 
-TABLE = (Path(__file__).resolve().parents[2]
-         / "ros2_ws/src/vega_gnc/config/tvc_controller.npz")
+TABLE = STRUCTURED_2026_11_27     # the 43 s hand edit is in its tuning record
 CORNERS = (0, 536, 568)        # nominal; f1 -20 %, mode-1 shapes +30 %, thrust, actuator +10 %
 
 

@@ -13,8 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from fixture_tables import STRUCTURED_2026_11_27
+
 ROOT = Path(__file__).resolve().parents[2]
-SHIPPED = ROOT / "ros2_ws/src/vega_gnc/config/tvc_controller.npz"
+SHIPPED = STRUCTURED_2026_11_27
 sys.path.insert(0, str(ROOT / "tools/design"))
 
 

@@ -21,6 +21,7 @@ import pytest
 from offline_synthesis import structured as S
 from offline_synthesis.export import discretise
 from offline_synthesis.margins import plant_loop_ss, sampled_data_model, sampled_data_stability
+from fixture_tables import STRUCTURED_2026_11_27
 
 
 @pytest.fixture(scope="module")
@@ -201,9 +202,9 @@ def test_tail_cost_is_the_worst_time_plus_a_tenth_of_the_mean(context):
 
 
 def test_retune_tail_holds_one_controller_and_keeps_the_rest(context):
-    from vega_gnc.controller_table import default_table_path, load_controller_table
+    from vega_gnc.controller_table import load_controller_table
 
-    meta = load_controller_table(default_table_path()).metadata
+    meta = load_controller_table(STRUCTURED_2026_11_27).metadata
     times, xs = meta["grid_times_s"], np.array(meta["parameters_per_grid_time"])
     design = S.retune_tail(context, times, xs, meta["anchors_s"], {"seed": 1}, maxiter=1,
                            popsize=2, polish_maxfev=10, times_s=(90.0, 100.0))
@@ -224,10 +225,10 @@ def test_retune_tail_holds_one_controller_and_keeps_the_rest(context):
 
 
 def test_tail_tuning_counts_the_flown_transition_from_the_left_grid_point(context):
-    from vega_gnc.controller_table import default_table_path, load_controller_table
+    from vega_gnc.controller_table import load_controller_table
     from vega_model.uncertainty import UncertaintySet
 
-    meta = load_controller_table(default_table_path()).metadata
+    meta = load_controller_table(STRUCTURED_2026_11_27).metadata
     by = dict(zip(meta["grid_times_s"], meta["parameters_per_grid_time"]))
     x, cost, details = S.tune_tail(context, by[86.0], maxiter=1, popsize=2, polish_maxfev=5,
                                    times_s=(90.0,), left=(84.0, by[84.0]))
@@ -293,20 +294,17 @@ def test_exact_band_criterion_agrees_with_the_margin_tool(gain, phase_deg, ok):
 
 def _shipped_points(*times):
     import json
-    from pathlib import Path
 
-    table = (Path(__file__).resolve().parents[2]
-             / "ros2_ws/src/vega_gnc/config/tvc_controller.npz")
-    meta = json.loads(str(np.load(table)["metadata"]))
+    meta = json.loads(str(np.load(STRUCTURED_2026_11_27)["metadata"]))
     by_time = dict(zip(meta["grid_times_s"], meta["parameters_per_grid_time"]))
     return {t: by_time[t] for t in times}
 
 
 def test_step4_adds_a_point_only_where_it_beats_the_flown_controller(context, uset,
                                                                       monkeypatch):
-    """Step 4's guard: between the shipped 44 and 46 s points the flown controller misses a
-    requirement at 45 s; a tuning that returns a worse controller there (k_θ = 0.05: unstable
-    at max-Q) is not added, and the grid stays 44, 46 s."""
+    """Step 4's guard: between the 44 and 46 s points of the 2026-11-27 table the flown
+    controller misses a requirement at 45 s; a tuning that returns a worse controller there
+    (k_θ = 0.05: unstable at max-Q) is not added, and the grid stays 44, 46 s."""
     anchors = _shipped_points(44.0, 46.0)
     ds45 = S.design_set(context, 45.0, uset)
     flown = S.flown_between(context, (44.0, anchors[44.0]), (46.0, anchors[46.0]), 45.0)

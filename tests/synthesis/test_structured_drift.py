@@ -5,15 +5,15 @@ points."""
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from offline_synthesis import structured as S
 from offline_synthesis.structured_worst_case import worst_case_bending_ok as WORST
+from fixture_tables import STRUCTURED_2026_11_27
 
-SHIPPED = Path(__file__).resolve().parents[2] / "ros2_ws/src/vega_gnc/config/tvc_controller.npz"
+SHIPPED = STRUCTURED_2026_11_27      # its drift record and hand edits are the real case
 
 
 @pytest.fixture(scope="module")
