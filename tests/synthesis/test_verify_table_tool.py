@@ -1,0 +1,79 @@
+"""tools/design/verify_table.py: the sign-off checks of a controller table in one command.
+
+Bad input is refused in one line (exit 2) before anything runs; a real, short run (the dispersed
+margins at one time, a two-flight campaign) reports the repository commands' own figures and
+gates on them (a campaign passing fewer flights than the reference fails the sign-off); the
+dispersed figures are read from a hand-made margins summary.
+"""
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+SHIPPED = ROOT / "ros2_ws/src/vega_gnc/config/tvc_controller.npz"
+sys.path.insert(0, str(ROOT / "tools/design"))
+
+import verify_table as V  # noqa: E402
+
+
+@pytest.mark.parametrize("args, message", [
+    (["{d}/missing.npz", "--out", "{d}/o"], "table {d}/missing.npz:"),
+    ([str(SHIPPED), "--out", "{d}/o", "--checks", "sil,fly"], "--checks sil,fly: each of"),
+    ([str(SHIPPED), "--out", "{d}/o", "--scenarios", "nominal,nope"], "--scenarios nope:"),
+    ([str(SHIPPED), "--out", "{d}/o", "--runs", "0"], "--runs 0: must be within"),
+    ([str(SHIPPED), "--out", "{d}/full"], "--out {d}/full: exists and is not an empty"),
+])
+def test_bad_input_is_one_line_and_exit_2_before_anything_runs(tmp_path, capsys, args,
+                                                               message):
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "kept.txt").write_text("x")
+    code = V.main([a.replace("{d}", str(tmp_path)) for a in args])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert message.replace("{d}", str(tmp_path)) in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["full"]
+    assert (tmp_path / "full" / "kept.txt").read_text() == "x"
+
+
+def _summary(unstable=0, b1_fail=0, b2_fail=0):
+    family = {"stability": {"n_unstable_loops": unstable},
+              "bending_1": {"n_fail_times": b1_fail, "fail_intervals_s": [[43.0, 43.0]] * b1_fail},
+              "bending_2": {"n_fail_times": b2_fail, "fail_intervals_s": []}}
+    nominal = {k: {"worst": w, "t_s": 41.0} for k, w in (
+        ("gm_low_db", 6.06), ("gm_high_db", 6.08), ("pm_deg", 30.02), ("bending_1", -10.6),
+        ("bending_2", -26.4))}
+    nominal["stability"] = {"n_unstable_loops": 0}
+    return {"dispersed": {"families": {"all": {"requirements": family}}}, "nominal": nominal}
+
+
+def test_dispersed_figures_from_a_hand_summary():
+    f = V.dispersed_figures(_summary(unstable=2, b1_fail=1, b2_fail=0))
+    assert f["unstable_loops"] == 2 and f["bending_miss_times"] == 1
+    assert f["bending_miss_intervals_s"]["bending_1"] == [[43.0, 43.0]]
+    assert f["nominal_worst"]["pm_deg"] == [30.02, 41.0]
+    assert V.dispersed_figures(_summary(b2_fail=3))["bending_miss_times"] == 3
+
+
+def test_a_short_real_sign_off_reports_and_gates(tmp_path, capsys):
+    """Margins at max-Q (43 s) with every dispersed corner, then a two-flight campaign against a
+    reference of three passes: the margins pass, the campaign cannot reach its reference, so
+    the sign-off fails (exit 1) with every figure recorded."""
+    out = tmp_path / "v"
+    code = V.main([str(SHIPPED), "--out", str(out), "--checks", "margins,mc", "--at", "43",
+                   "--runs", "2", "--mc-reference", "3", "--workers", "1"])
+    report = json.loads((out / "verify.json").read_text())
+    assert code == 1 and report["signed_off"] is False
+    margins, mc = report["checks"]
+    assert margins["check"] == "margins --dispersed" and margins["exit"] == 0
+    assert margins["passed"] and margins["figures"]["unstable_loops"] == 0
+    assert margins["figures"]["bending_miss_times"] == 0
+    gm_low, t = margins["figures"]["nominal_worst"]["gm_low_db"]
+    assert t == 43.0 and 6.0 <= gm_low < 8.0           # the shipped table at max-Q: 6.30 dB
+    assert mc["figures"]["runs"] == 2 and mc["figures"]["unstable"] == 0
+    assert mc["figures"]["reference_passed"] == 3 and not mc["passed"]
+    assert (out / "mc" / "summary.json").exists() and (out / "margins.log").exists()
+    printed = capsys.readouterr().out
+    assert "mc 2 flights: FAIL" in printed and "a gated check FAILED" in printed

@@ -1,0 +1,218 @@
+"""The sign-off checks of a controller table, in one command: what a new design must pass before
+it replaces the shipped one (docs/FLIGHT_DESIGN.md §6 and its "How a design is signed off").
+
+Checks (each the repository's own command, run as a subprocess, its output kept in OUT):
+
+* ``sil`` — `vega sil run --table TABLE` for each scenario: gated (exit 0 required) for
+  nominal, thesis, gust, wind_change (issue 9 item 6) and the four dispersed scenarios
+  (dispersed_bending_low/high, dispersed_mode2, dispersed_worst); reported, not gated, for
+  severe (declared off-design in its scenario file) and nominal_no_bias (the guidance's
+  no-bias case, expected to fail its drift and load requirements);
+* ``margins`` — `vega margins --table TABLE --dispersed`: gated on its exit status (the
+  heritage margins on the nominal plant at every 0.5 s) and, from its margins.json, on 0
+  unstable dispersed loops and the exact bending criterion (docs/FLIGHT_DESIGN.md §3) at every
+  dispersed corner and time; the worst nominal margins are reported;
+* ``robust`` — `vega robust --table TABLE --no-mu`: gated on its exit status (no unstable
+  plant found, the worst case meets the bending criteria at every time);
+* ``mc`` — `vega mc run --table TABLE --runs N`: gated on 0 unstable flights; passes, Qα and
+  drift failures reported (and compared with ``--mc-reference PASSED`` when given: a design
+  that passes fewer flights than the shipped one is reported as such, and gated).
+
+Writes OUT/verify.json (per check: command, exit status, wall time, figures, verdict) and
+prints one line per check. Exit 0 when every gated check passes, 1 when one fails, 2 on bad
+input (one line, before anything runs).
+
+Usage: .venv/bin/vega-env python tools/design/verify_table.py TABLE --out DIR
+       [--checks sil,margins,robust,mc] [--scenarios A,B] [--runs 852] [--mc-reference 746]
+       [--workers 2] [--at 0:100:0.5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+CHECKS = ("sil", "margins", "robust", "mc")
+GATED_SCENARIOS = ("nominal", "thesis", "gust", "wind_change", "dispersed_bending_low",
+                   "dispersed_bending_high", "dispersed_mode2", "dispersed_worst")
+REPORTED_SCENARIOS = ("severe", "nominal_no_bias")
+
+
+class BadInput(Exception):
+    pass
+
+
+def _vega(args, log: Path) -> tuple[int, float]:
+    """Run ``vega ARGS`` (this interpreter, the repository's environment), its stdout and
+    stderr into ``log``; the exit status and the wall time."""
+    start = time.monotonic()
+    with open(log, "w") as f:
+        code = subprocess.call([sys.executable, "-m", "vega_cli.cli", *args], stdout=f,
+                               stderr=subprocess.STDOUT)
+    return code, time.monotonic() - start
+
+
+def check_sil(table, out: Path, scenarios) -> list[dict]:
+    results = []
+    for name in scenarios:
+        code, wall = _vega(["sil", "run", "--scenario", name, "--table", str(table),
+                            "--out", str(out / "sil"), "--run-id", name],
+                           out / f"sil_{name}.log")
+        gated = name not in REPORTED_SCENARIOS
+        results.append({"check": f"sil {name}", "exit": code, "wall_s": round(wall, 1),
+                        "gated": gated, "passed": code == 0,
+                        "figures": {"log": f"sil_{name}.log", "run": f"sil/{name}"}})
+    return results
+
+
+def dispersed_figures(summary: dict) -> dict:
+    """From the summary of `vega margins --dispersed` (margins.json): the unstable dispersed
+    loops, the times where a stable dispersed loop misses the exact bending criterion, and the
+    worst nominal margins (value and time)."""
+    everything = summary["dispersed"]["families"]["all"]["requirements"]
+    nominal = summary["nominal"]
+    return {"unstable_loops": everything["stability"]["n_unstable_loops"],
+            "bending_miss_times": max(everything["bending_1"]["n_fail_times"],
+                                      everything["bending_2"]["n_fail_times"]),
+            "bending_miss_intervals_s": {k: everything[k]["fail_intervals_s"]
+                                         for k in ("bending_1", "bending_2")},
+            "nominal_worst": {k: [nominal[k]["worst"], nominal[k].get("t_s")]
+                              for k in ("gm_low_db", "gm_high_db", "pm_deg", "bending_1",
+                                        "bending_2")},
+            "nominal_unstable_loops": nominal["stability"]["n_unstable_loops"]}
+
+
+def check_margins(table, out: Path, workers: int, at: str) -> list[dict]:
+    code, wall = _vega(["margins", "--table", str(table), "--dispersed", "--out",
+                        str(out / "margins"), "--workers", str(workers), "--at", at],
+                       out / "margins.log")
+    figures = {"log": "margins.log"}
+    path = out / "margins" / "margins.json"
+    if path.exists():
+        figures.update(dispersed_figures(json.loads(path.read_text())))
+    passed = (code == 0 and figures.get("unstable_loops") == 0
+              and figures.get("bending_miss_times") == 0)
+    return [{"check": "margins --dispersed", "exit": code, "wall_s": round(wall, 1),
+             "gated": True, "passed": passed, "figures": figures}]
+
+
+def check_robust(table, out: Path, workers: int, at: str) -> list[dict]:
+    code, wall = _vega(["robust", "--table", str(table), "--no-mu", "--out",
+                        str(out / "robust"), "--workers", str(workers), "--at", at],
+                       out / "robust.log")
+    figures = {"log": "robust.log"}
+    path = out / "robust" / "robust.json"
+    if path.exists():
+        summary = json.loads(path.read_text()).get("summary", {})
+        figures.update({k: summary.get(k) for k in (
+            "unstable_times_s", "worst_case_bending_fail_times_s", "robust_stability_pass",
+            "worst_case_bending_pass")})
+    return [{"check": "robust --no-mu", "exit": code, "wall_s": round(wall, 1),
+             "gated": True, "passed": code == 0, "figures": figures}]
+
+
+def check_mc(table, out: Path, runs: int, workers: int, reference: int | None) -> list[dict]:
+    code, wall = _vega(["mc", "run", "--runs", str(runs), "--table", str(table), "--out",
+                        str(out / "mc"), "--workers", str(workers)], out / "mc.log")
+    figures = {"log": "mc.log"}
+    path = out / "mc" / "summary.json"
+    passed = False
+    if path.exists():
+        s = json.loads(path.read_text())
+        kinds: dict = {}
+        for f in s["failed_samples"]:
+            for kind in f["failed"]:
+                kinds[kind] = kinds.get(kind, 0) + 1
+        figures.update({"runs": s["runs"], "passed": s["passed"], "unstable": s["unstable"],
+                        "failures_by_requirement": kinds,
+                        "pass_fraction_lower_90": s["pass_fraction_lower_90"],
+                        "reference_passed": reference})
+        passed = s["unstable"] == 0 and (reference is None or s["passed"] >= reference)
+    return [{"check": f"mc {runs} flights", "exit": code, "wall_s": round(wall, 1),
+             "gated": True, "passed": passed, "figures": figures}]
+
+
+def parse(argv):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("table")
+    p.add_argument("--out", required=True)
+    p.add_argument("--checks", default=",".join(CHECKS))
+    p.add_argument("--scenarios", default=",".join(GATED_SCENARIOS + REPORTED_SCENARIOS))
+    p.add_argument("--runs", type=int, default=852)
+    p.add_argument("--mc-reference", type=int, default=None)
+    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--at", default="0:100:0.5",
+                   help="frozen times of margins and robust (default 0:100:0.5, the flight)")
+    return p.parse_args(argv)
+
+
+def validate(args) -> tuple[Path, Path, list[str], list[str]]:
+    from vega_gnc.controller_table import load_controller_table
+
+    table = Path(args.table)
+    try:
+        load_controller_table(table)
+    except (ValueError, OSError) as exc:
+        raise BadInput(f"table {table}: {' '.join(str(exc).split())}") from None
+    out = Path(args.out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise BadInput(f"--out {out}: exists and is not an empty directory")
+    checks = [c for c in args.checks.split(",") if c]
+    unknown = [c for c in checks if c not in CHECKS]
+    if unknown or not checks:
+        raise BadInput(f"--checks {args.checks}: each of {', '.join(CHECKS)}")
+    from vega_sim.scenario import load_scenario
+
+    scenarios = [s for s in args.scenarios.split(",") if s]
+    for name in scenarios:
+        try:
+            load_scenario(name)
+        except (ValueError, OSError) as exc:
+            raise BadInput(f"--scenarios {name}: {' '.join(str(exc).split())}") from None
+    if not 1 <= args.runs <= 100000:
+        raise BadInput(f"--runs {args.runs}: must be within 1..100000")
+    if not 1 <= args.workers <= 64:
+        raise BadInput(f"--workers {args.workers}: must be within 1..64")
+    return table.resolve(), out, checks, scenarios
+
+
+def main(argv=None) -> int:
+    args = parse(argv)
+    try:
+        table, out, checks, scenarios = validate(args)
+    except BadInput as exc:
+        print(f"verify_table: {exc}", file=sys.stderr)
+        return 2
+    out.mkdir(parents=True, exist_ok=True)
+    results = []
+    for check in checks:
+        print(f"verify_table: {check} …", flush=True)
+        if check == "sil":
+            got = check_sil(table, out, scenarios)
+        elif check == "margins":
+            got = check_margins(table, out, args.workers, args.at)
+        elif check == "robust":
+            got = check_robust(table, out, args.workers, args.at)
+        else:
+            got = check_mc(table, out, args.runs, args.workers, args.mc_reference)
+        for r in got:
+            verdict = ("pass" if r["passed"] else "FAIL") if r["gated"] else (
+                "reported: " + ("pass" if r["passed"] else "fail"))
+            shown = {k: v for k, v in r["figures"].items() if k not in ("log", "run")}
+            print(f"  {r['check']}: {verdict} (exit {r['exit']}, {r['wall_s']:.0f} s)"
+                  + (f" {json.dumps(shown)}" if shown else ""), flush=True)
+        results.extend(got)
+    ok = all(r["passed"] for r in results if r["gated"])
+    (out / "verify.json").write_text(json.dumps(
+        {"table": str(table), "checks": results, "signed_off": ok}, indent=1) + "\n")
+    print(f"verify_table: {'every gated check passed' if ok else 'a gated check FAILED'}; "
+          f"{out / 'verify.json'}")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
