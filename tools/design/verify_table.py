@@ -43,7 +43,7 @@ REPORTED_SCENARIOS = ("severe", "nominal_no_bias")
 
 
 class BadInput(Exception):
-    pass
+    """An argument of this tool a user can correct (one line, exit 2)."""
 
 
 def _vega(args, log: Path) -> tuple[int, float]:
@@ -57,6 +57,7 @@ def _vega(args, log: Path) -> tuple[int, float]:
 
 
 def check_sil(table, out: Path, scenarios) -> list[dict]:
+    """One SIL flight per scenario; gated on exit 0 except :data:`REPORTED_SCENARIOS`."""
     results = []
     for name in scenarios:
         code, wall = _vega(["sil", "run", "--scenario", name, "--table", str(table),
@@ -86,14 +87,20 @@ def dispersed_figures(summary: dict) -> dict:
             "nominal_unstable_loops": nominal["stability"]["n_unstable_loops"]}
 
 
+def _frozen(command: str, table, out: Path, workers: int, at: str, extra=()) -> tuple:
+    """`vega COMMAND --table TABLE [EXTRA] --out OUT/COMMAND --workers W --at AT`: exit status,
+    wall time, the summary it wrote (COMMAND.json) or None."""
+    code, wall = _vega([command, "--table", str(table), *extra, "--out", str(out / command),
+                        "--workers", str(workers), "--at", at], out / f"{command}.log")
+    path = out / command / f"{command}.json"
+    return code, wall, json.loads(path.read_text()) if path.exists() else None
+
+
 def check_margins(table, out: Path, workers: int, at: str) -> list[dict]:
-    code, wall = _vega(["margins", "--table", str(table), "--dispersed", "--out",
-                        str(out / "margins"), "--workers", str(workers), "--at", at],
-                       out / "margins.log")
-    figures = {"log": "margins.log"}
-    path = out / "margins" / "margins.json"
-    if path.exists():
-        figures.update(dispersed_figures(json.loads(path.read_text())))
+    """`vega margins --dispersed`: gated on its exit status, 0 unstable dispersed loops and 0
+    times missing the exact bending criterion."""
+    code, wall, summary = _frozen("margins", table, out, workers, at, ["--dispersed"])
+    figures = {"log": "margins.log", **(dispersed_figures(summary) if summary else {})}
     passed = (code == 0 and figures.get("unstable_loops") == 0
               and figures.get("bending_miss_times") == 0)
     return [{"check": "margins --dispersed", "exit": code, "wall_s": round(wall, 1),
@@ -101,21 +108,20 @@ def check_margins(table, out: Path, workers: int, at: str) -> list[dict]:
 
 
 def check_robust(table, out: Path, workers: int, at: str) -> list[dict]:
-    code, wall = _vega(["robust", "--table", str(table), "--no-mu", "--out",
-                        str(out / "robust"), "--workers", str(workers), "--at", at],
-                       out / "robust.log")
-    figures = {"log": "robust.log"}
-    path = out / "robust" / "robust.json"
-    if path.exists():
-        summary = json.loads(path.read_text()).get("summary", {})
-        figures.update({k: summary.get(k) for k in (
-            "unstable_times_s", "worst_case_bending_fail_times_s", "robust_stability_pass",
-            "worst_case_bending_pass")})
+    """`vega robust --no-mu`: gated on its exit status (no unstable plant found, the worst
+    case meets the bending criteria at every time)."""
+    code, wall, result = _frozen("robust", table, out, workers, at, ["--no-mu"])
+    summary = (result or {}).get("summary", {})
+    figures = {"log": "robust.log", **{k: summary.get(k) for k in (
+        "unstable_times_s", "worst_case_bending_fail_times_s", "robust_stability_pass",
+        "worst_case_bending_pass")}}
     return [{"check": "robust --no-mu", "exit": code, "wall_s": round(wall, 1),
              "gated": True, "passed": code == 0, "figures": figures}]
 
 
 def check_mc(table, out: Path, runs: int, workers: int, reference: int | None) -> list[dict]:
+    """`vega mc run`: gated on 0 unstable flights and, with a reference, at least that many
+    passes."""
     code, wall = _vega(["mc", "run", "--runs", str(runs), "--table", str(table), "--out",
                         str(out / "mc"), "--workers", str(workers)], out / "mc.log")
     figures = {"log": "mc.log"}
@@ -137,6 +143,7 @@ def check_mc(table, out: Path, runs: int, workers: int, reference: int | None) -
 
 
 def parse(argv):
+    """The command line (module docstring)."""
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("table")
     p.add_argument("--out", required=True)
@@ -151,6 +158,7 @@ def parse(argv):
 
 
 def validate(args) -> tuple[Path, Path, list[str], list[str]]:
+    """Every argument checked before anything runs (:class:`BadInput`)."""
     from vega_gnc.controller_table import load_controller_table
 
     table = Path(args.table)
@@ -181,6 +189,7 @@ def validate(args) -> tuple[Path, Path, list[str], list[str]]:
 
 
 def main(argv=None) -> int:
+    """Run the checks; exit status 0 signed off, 1 a gated check failed, 2 bad input."""
     args = parse(argv)
     try:
         table, out, checks, scenarios = validate(args)
