@@ -1,5 +1,5 @@
 """The sign-off checks of a controller table, in one command: what a new design must pass before
-it replaces the shipped one (docs/FLIGHT_DESIGN.md §6 and its "How a design is signed off").
+it replaces the shipped one (docs/FLIGHT_DESIGN.md §6.5, "How a design is signed off").
 
 Checks (each the repository's own command, run as a subprocess, its output kept in OUT):
 
