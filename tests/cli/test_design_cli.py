@@ -111,3 +111,14 @@ def test_drift_and_tail_together_are_refused(tmp_path, capsys):
     assert_refused(["design", "--out", str(tmp_path / "t.npz"), "--tail-from", str(LPV),
                     "--drift-from", str(LPV)], capsys,
                    "--tail-from and --drift-from: give one of them")
+
+
+def test_design_runs_with_one_blas_thread_unless_told(monkeypatch, capsys):
+    """The tuning's spawned processes run with one BLAS thread; so does `vega design` itself
+    (a task of a resumed run may run in it), unless the caller set a value."""
+    import os
+
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    monkeypatch.setenv("OMP_NUM_THREADS", "3")
+    assert_refused(["design", "--out", "t.npz", "--maxiter", "0"], capsys, "--maxiter 0")
+    assert os.environ["OPENBLAS_NUM_THREADS"] == "1" and os.environ["OMP_NUM_THREADS"] == "3"

@@ -35,6 +35,13 @@ __all__ = ["register"]
 
 
 def _run(args: argparse.Namespace) -> int:
+    import os
+
+    # one BLAS thread here too, as in the spawned tuning processes: a task of a resumed run that
+    # runs in this process (the last one of a batch) computes what a worker computed (numpy is
+    # imported below, after this; an explicit setting of the caller is kept)
+    for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(name, "1")
     import json
     import time
 
