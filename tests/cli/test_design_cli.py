@@ -122,3 +122,29 @@ def test_design_runs_with_one_blas_thread_unless_told(monkeypatch, capsys):
     monkeypatch.setenv("OMP_NUM_THREADS", "3")
     assert_refused(["design", "--out", "t.npz", "--maxiter", "0"], capsys, "--maxiter 0")
     assert os.environ["OPENBLAS_NUM_THREADS"] == "1" and os.environ["OMP_NUM_THREADS"] == "3"
+
+
+def test_heartbeat_counts_the_finished_tasks_until_stopped(tmp_path):
+    """The progress line between two finished searches: minutes and finished tasks (journal
+    lines after the header); nothing after the stop."""
+    import io
+    import threading
+    import time
+
+    from vega_cli.commands.design import heartbeat
+
+    journal = tmp_path / "t.journal.jsonl"
+    journal.write_text("header\n" + "task\n" * 3)
+    out, stop = io.StringIO(), threading.Event()
+    thread = threading.Thread(target=heartbeat, args=(journal, stop, 0.02, out))
+    thread.start()
+    time.sleep(0.15)
+    stop.set()
+    thread.join(5)
+    lines = out.getvalue().splitlines()
+    assert not thread.is_alive() and lines
+    assert all(line.startswith("vega design: 0 min, 3 tuning tasks finished (journal ")
+               for line in lines)
+    n = len(lines)
+    time.sleep(0.1)
+    assert len(out.getvalue().splitlines()) == n

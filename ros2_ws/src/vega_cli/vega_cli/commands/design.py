@@ -34,6 +34,24 @@ from vega_cli.commands._paths import npz_out
 __all__ = ["register"]
 
 
+def heartbeat(journal_path: Path, stop, every_s: float = 60.0, out=None) -> None:
+    """Until ``stop`` (a :class:`threading.Event`) is set: every ``every_s`` a line with the
+    time since the start and the number of tuning tasks finished so far (the journal's
+    lines): a search prints only when a task finishes, ≈ 10 min apart for anchors."""
+    import sys
+    import time
+
+    start = time.monotonic()
+    while not stop.wait(every_s):
+        try:
+            with open(journal_path, "rb") as f:
+                finished = max(sum(1 for _ in f) - 1, 0)
+        except OSError:
+            continue
+        print(f"vega design: {(time.monotonic() - start) / 60:.0f} min, {finished} tuning "
+              f"tasks finished (journal {journal_path})", file=out or sys.stdout, flush=True)
+
+
 def _run(args: argparse.Namespace) -> int:
     import os
 
@@ -141,11 +159,18 @@ def _run(args: argparse.Namespace) -> int:
         print(f"journal {journal_path}: {len(journal)} finished tasks"
               + (" (reused where the same task comes again)" if len(journal) else ""),
               flush=True)
-        design = design_flight(context, seed=args.seed, maxiter=args.maxiter,
-                               workers=args.workers, anchor_x=anchor_x,
-                               repair=bool(args.repair_from), **kwargs,
-                               drift_worst_case=worst_case_bending_ok, journal=journal,
-                               progress=lambda line: print(line, flush=True))
+        import threading
+
+        stop = threading.Event()
+        threading.Thread(target=heartbeat, args=(journal_path, stop), daemon=True).start()
+        try:
+            design = design_flight(context, seed=args.seed, maxiter=args.maxiter,
+                                   workers=args.workers, anchor_x=anchor_x,
+                                   repair=bool(args.repair_from), **kwargs,
+                                   drift_worst_case=worst_case_bending_ok, journal=journal,
+                                   progress=lambda line: print(line, flush=True))
+        finally:
+            stop.set()
         if not args.no_corner_repair:
             design = repair_design(context, design, workers=args.workers,
                                    worst_case=worst_case_bending_ok,
