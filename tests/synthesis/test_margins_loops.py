@@ -267,17 +267,31 @@ def test_nyquist_count_with_a_double_controller_pole_pair_close_to_the_circle(th
     argument of 1 + L_d turns by ≈ 360° within a few δ of θp — inside one step of the
     uniform θ grid (π/4000 ≈ 7.9e-4), so the count needs the fine grids near 0 and π and
     the refinement. Reference: the roots of (z − 1) D(z)² + T (cb + dd D(z)²) by hand (none
-    within 5e-6 of the circle: the premise, checked)."""
+    within 5e-6 of the circle: the premise, checked).
+
+    1/D(z)² is realised as two 1/D(z) sections in series (block-triangular, each a 2×2
+    companion form) coupled through a gain g = 1e-6 (undone in the output), not as the 4×4
+    companion form of D(z)²: the eigenvalues of that companion matrix — four roots within 8e-4
+    of z = 1 — are computed only to ≈ 4e-5 in double precision; on this machine's OpenBLAS (AMD
+    EPYC, 2026-11-27) two came out at |z| = 1 + 2.7e-5 for δ = 1e-5: an open-loop "unstable"
+    count of 2 for a controller whose poles are all inside the circle (the test had passed on
+    other CPUs). A double eigenvalue with a coupling g is perturbed by ≈ √(eps·g): with g = 1
+    still 1e-6 past the circle, with g = 1e-6 ≈ 1e-11."""
     T = 0.02
     rho = 1.0 - delta
     model = M.sampled_data_model(np.array([[0.0]]), np.array([[1.0]]), T, 0.0)
     D = np.array([1.0, -2.0 * rho * math.cos(theta_p), rho ** 2])
     D2 = np.polymul(D, D)
-    Ad = np.zeros((4, 4))
-    Ad[:3, 1:] = np.eye(3)
-    Ad[3] = -D2[1:][::-1]                            # companion form of 1 / D(z)²
-    K = (Ad, np.array([[0.0], [0.0], [0.0], [1.0]]), np.array([[cb, 0.0, 0.0, 0.0]]),
+    A1 = np.array([[0.0, 1.0], [-D[2], -D[1]]])      # 1 / D(z): x' = A1 x + [0, 1] u, y = x0
+    b1, c1 = np.array([[0.0], [1.0]]), np.array([[1.0, 0.0]])
+    g = 1e-6                                          # section 1 feeds section 2 through g
+    Ad = np.block([[A1, np.zeros((2, 2))], [g * b1 @ c1, A1]])
+    K = (Ad, np.vstack([b1, np.zeros((2, 1))]), np.hstack([np.zeros((1, 2)), cb / g * c1]),
          np.array([[dd]]))
+    z = np.exp(0.37j)                                 # the realisation is cb / D(z)² + dd
+    k_z = (K[2] @ np.linalg.solve(z * np.eye(4) - Ad, K[1]) + K[3])[0, 0]
+    assert k_z == pytest.approx(cb / np.polyval(D2, z) + dd, rel=1e-12)
+    assert np.max(np.abs(np.linalg.eigvals(Ad))) < 1.0 - 0.5 * delta
     r = np.abs(np.roots(np.polyadd(np.polymul([1.0, -1.0], D2), T * np.polyadd([cb], dd * D2))))
     assert np.min(np.abs(r - 1.0)) > 5e-6
     got = M.sampled_data_stability(model, np.array([[1.0]]), K, sign=-1.0)
