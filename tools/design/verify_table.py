@@ -36,14 +36,12 @@ import sys
 import time
 from pathlib import Path
 
+from vega_core.errors import BadInput, one_line
+
 CHECKS = ("sil", "margins", "robust", "mc")
 GATED_SCENARIOS = ("nominal", "thesis", "gust", "wind_change", "dispersed_bending_low",
                    "dispersed_bending_high", "dispersed_mode2", "dispersed_worst")
 REPORTED_SCENARIOS = ("severe", "nominal_no_bias")
-
-
-class BadInput(Exception):
-    """An argument of this tool a user can correct (one line, exit 2)."""
 
 
 def _vega(args, log: Path) -> tuple[int, float]:
@@ -164,8 +162,8 @@ def validate(args) -> tuple[Path, Path, list[str], list[str]]:
     table = Path(args.table)
     try:
         load_controller_table(table)
-    except (ValueError, OSError) as exc:
-        raise BadInput(f"table {table}: {' '.join(str(exc).split())}") from None
+    except (BadInput, OSError) as exc:          # anything else is a defect: a traceback
+        raise BadInput(f"table {table}: {one_line(exc)}") from None
     out = Path(args.out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise BadInput(f"--out {out}: exists and is not an empty directory")
@@ -179,8 +177,8 @@ def validate(args) -> tuple[Path, Path, list[str], list[str]]:
     for name in scenarios:
         try:
             load_scenario(name)
-        except (ValueError, OSError) as exc:
-            raise BadInput(f"--scenarios {name}: {' '.join(str(exc).split())}") from None
+        except (BadInput, OSError) as exc:
+            raise BadInput(f"--scenarios {name}: {one_line(exc)}") from None
     if not 1 <= args.runs <= 100000:
         raise BadInput(f"--runs {args.runs}: must be within 1..100000")
     if not 1 <= args.workers <= 64:
