@@ -11,7 +11,8 @@ at 34.5 s) removed the misses. This step is that practice written down as a rule
 `vega design` run makes a table the verification passes, with no hand edit:
 
 1. **Check.** Between every two neighbouring grid points, the flown controller at every
-   time of the 0.5 s grid (:func:`.structured.worst_case_times`; the first grid time too),
+   time of the 0.5 s grid (:func:`.structured.worst_case_times`; the first grid time and the
+   times before it too: from 0 s the first point's controller flies alone),
    at every corner of :func:`.margins.dispersed_corners`. A *miss* is a (time, corner,
    criterion) where the loop is unstable or a mode misses :func:`.margins.bending_ok`
    (≤ −6 dB, or phase-stabilised with ≥ 6 dB / 30° in its band: the heritage criterion of
@@ -123,9 +124,16 @@ def row_misses(row: Mapping) -> set:
 
 def interval_times(left_s: float, right_s: float, first: bool = False) -> list[float]:
     """The 0.5 s-grid times flown between the grid points ``left_s`` and ``right_s``, the right
-    one included (and the left one with ``first``: the first grid point of the table)."""
+    one included; with ``first`` (``left_s`` is the first grid point checked) the left one too,
+    and when it is the table's first grid point (the design's, :data:`.structured.
+    DEFAULT_ANCHORS_S`) the times before it that its controller flies alone from the first INS
+    sample on (:data:`.structured.PAD_TIMES_S`, as its design set holds them)."""
     times = S.worst_case_times(left_s, right_s)
-    return ([float(left_s)] if first else []) + times
+    if not first:
+        return times
+    pad = ([float(t) for t in S.PAD_TIMES_S if t < left_s - 1e-9]
+           if left_s <= S.DEFAULT_ANCHORS_S[0] + 1e-9 else [])
+    return pad + [float(left_s)] + times
 
 
 def candidate(x, edit) -> np.ndarray | None:
@@ -287,7 +295,7 @@ def repair_corner_bending(context, done: Mapping[float, tuple],
                     # itself (its own controller alone flies there)
                     other = b if a == t else a
                     missed = {(tm, c) for tm, c, _ in old_miss
-                              if (a < tm <= b + 1e-9 or (a == first and tm == a))
+                              if (a < tm <= b + 1e-9 or (a == first and tm <= a + 1e-9))
                               and abs(tm - other) > 1e-9}
                     if not missed:
                         continue

@@ -179,6 +179,7 @@ class DesignSet:
     load: tuple = field(default=None)              # wind → α of the nominal plant (with_load)
     load_weight: float = 0.0                       # weight of the load objective in the cost
     load_metric: str = "peak"                      # its figure (LOAD_METRICS)
+    pad: np.ndarray = field(default=None)          # (plants,): at a time before t_s (PAD_TIMES_S)
 
 
 def design_grid(omega_modes, dt_s: float) -> np.ndarray:
@@ -248,15 +249,37 @@ def _label(dev: Mapping[str, float]) -> str:
     return " ".join(f"{k}{v:+.3g}" for k, v in dev.items() if v) or "nominal"
 
 
+PAD_TIMES_S = (0.0,)
+"""Flight times [s] before the first grid point (:data:`DEFAULT_ANCHORS_S`, 0.5 s) that its
+controller flies alone: the table holds it below the lift-off velocity, from the first INS
+sample on. At 0 s the thrust is still 0 (reference trajectory data): the nozzle moves the
+vehicle only through its inertia ("tail wags dog"), which excites the bending modes with no
+rigid-body control to go with it. Found by `vega margins --dispersed` on the first
+from-scratch `vega design` table (2026-11-27, eighth session): its 0.5 s point, tuned on 0.5 s
+plants only, left mode 2 (−25 %) with delay +10 ms unstable at 0 s (|z| 1.0002) at 16 corners
+and phase-stabilised with a 2 dB gain margin at 32 more. The bending plants of the design set
+at these times are therefore part of the first grid point's design set (:func:`design_set`)."""
+
+
 def design_set(context, t_s: float, uset) -> DesignSet:
     """Precompute the design plants at flight time ``t_s`` (controller period from the
-    vehicle data, ``controller.rate_hz``)."""
+    vehicle data, ``controller.rate_hz``). For the first grid point (``t_s`` ≤ the first of
+    :data:`DEFAULT_ANCHORS_S`) the bending plants at :data:`PAD_TIMES_S` before it are added
+    (labels ``"t=0 s …"``, ``pad`` True): they count in the stability and bending terms of the
+    cost, not in the rigid-body margins (no thrust, no rigid-body loop) nor as slow modes (the
+    rigid-body poles stay at z = 1 without thrust, whatever the controller)."""
     dt_s = 1.0 / float(context.vehicle["controller.rate_hz"])
     p0 = context.parameters(float(t_s))
     w = design_grid(p0.omega_radps, dt_s)
-    labels, families, modes, Gd, models, Cs = [], [], [], [], [], []
-    for label, family, dev in design_deviations(uset):
-        p, act, tau = corner_plant(context, t_s, dev)
+    labels, families, modes, Gd, models, Cs, pad = [], [], [], [], [], [], []
+    plants = [(label, family, dev, float(t_s)) for label, family, dev in design_deviations(uset)]
+    if float(t_s) <= DEFAULT_ANCHORS_S[0] + 1e-9:
+        plants += [(f"t={t:g} s {label}", family, dev, float(t))
+                   for t in PAD_TIMES_S if t < float(t_s) - 1e-9
+                   for label, family, dev in design_deviations(uset) if family == "bending"]
+    for label, family, dev, t_plant in plants:
+        pad.append(t_plant != float(t_s))
+        p, act, tau = corner_plant(context, t_plant, dev)
         A, B, C = plant_loop_ss(p, act, INPUT_NAMES)
         model = sampled_data_model(A, B, dt_s, tau)
         Gd.append(sampled_data_response(A, B, C, dt_s, tau, w, model)[:, :, 0])
@@ -272,7 +295,7 @@ def design_set(context, t_s: float, uset) -> DesignSet:
         bands |= ((w[None, :] >= BAND[0] * modes_arr[:, i:i + 1])
                   & (w[None, :] <= BAND[1] * modes_arr[:, i:i + 1]))
     return DesignSet(float(t_s), dt_s, tuple(p0.omega_radps), w, labels, families, modes,
-                     np.array(Gd), models, Cs, rigid, bands)
+                     np.array(Gd), models, Cs, rigid, bands, pad=np.array(pad, dtype=bool))
 
 
 LOAD_BAND_RADPS = (0.02, 1.0)
@@ -460,8 +483,9 @@ def evaluate_discrete(K, ds: DesignSet, detail: bool = False):
     L = -SIGN * np.einsum("pwi,wi->pw", ds.Gd, Kr)                  # (plants, w)
     radius = _closed_loop_radius(ds, K)
     n_unstable = int(np.count_nonzero(radius > 1.0 + UNSTABLE_EPS))
+    flying = radius if ds.pad is None else radius[~ds.pad]
     terms = {"unstable": 10.0 * n_unstable,
-             "slow_modes": 100.0 * float(np.sum(np.maximum(np.minimum(radius, 1.0 + UNSTABLE_EPS)
+             "slow_modes": 100.0 * float(np.sum(np.maximum(np.minimum(flying, 1.0 + UNSTABLE_EPS)
                                                            - (1.0 - 1e-4), 0.0)))}
     nom = extract_margins(ds.w_radps, L[0], ds.modes[0])
     pm_req = REQUIREMENTS["pm_deg"] + DESIGN_MARGIN["pm_deg"]

@@ -69,7 +69,8 @@ def test_candidate_edits_stay_in_the_box_and_move_one_parameter():
 def test_interval_times_are_the_half_second_grid_flown_between_two_points():
     assert R.interval_times(42.5, 43.0) == [43.0]
     assert R.interval_times(40.0, 42.0) == [40.5, 41.0, 41.5, 42.0]
-    assert R.interval_times(0.5, 2.0, first=True) == [0.5, 1.0, 1.5, 2.0]
+    assert R.interval_times(0.5, 2.0, first=True) == [0.0, 0.5, 1.0, 1.5, 2.0]
+    assert R.interval_times(42.5, 43.0, first=True) == [42.5, 43.0]   # a slice: no pad time
     assert R.interval_times(45.75, 45.875) == []
 
 
