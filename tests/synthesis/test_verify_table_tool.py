@@ -57,6 +57,19 @@ def test_dispersed_figures_from_a_hand_summary():
     assert V.dispersed_figures(_summary(b2_fail=3))["bending_miss_times"] == 3
 
 
+def test_campaign_failures_counted_per_requirement_from_a_hand_summary():
+    """A failed sample names its requirements comma-separated (campaign_run's summary.json):
+    each counts once per requirement, not per character."""
+    summary = {"runs": 10, "passed": 6, "unstable": 0, "pass_fraction_lower_90": 0.4,
+               "failed_samples": [{"sample": 1, "failed": "q_alpha"},
+                                  {"sample": 4, "failed": "q_alpha,drift_rate"},
+                                  {"sample": 7, "failed": "drift"},
+                                  {"sample": 9, "failed": "q_alpha"}]}
+    f = V.mc_figures(summary, 746)
+    assert f["failures_by_requirement"] == {"q_alpha": 3, "drift_rate": 1, "drift": 1}
+    assert (f["runs"], f["passed"], f["unstable"], f["reference_passed"]) == (10, 6, 0, 746)
+
+
 def test_a_short_real_sign_off_reports_and_gates(tmp_path, capsys):
     """Margins at max-Q (43 s) with every dispersed corner, then a two-flight campaign against a
     reference of three passes: the margins pass, the campaign cannot reach its reference, so

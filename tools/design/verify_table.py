@@ -117,6 +117,20 @@ def check_robust(table, out: Path, workers: int, at: str) -> list[dict]:
              "gated": True, "passed": code == 0, "figures": figures}]
 
 
+def mc_figures(summary: dict, reference: int | None) -> dict:
+    """From a campaign's summary.json: flights, passes, unstable flights, failures counted per
+    requirement (a failed sample names its requirements comma-separated, e.g.
+    ``"q_alpha,drift_rate"``: it counts once for each), the 90 % lower bound, the reference."""
+    kinds: dict = {}
+    for f in summary["failed_samples"]:
+        for kind in str(f["failed"]).split(","):
+            kinds[kind.strip()] = kinds.get(kind.strip(), 0) + 1
+    return {"runs": summary["runs"], "passed": summary["passed"],
+            "unstable": summary["unstable"], "failures_by_requirement": kinds,
+            "pass_fraction_lower_90": summary["pass_fraction_lower_90"],
+            "reference_passed": reference}
+
+
 def check_mc(table, out: Path, runs: int, workers: int, reference: int | None) -> list[dict]:
     """`vega mc run`: gated on 0 unstable flights and, with a reference, at least that many
     passes."""
@@ -127,14 +141,7 @@ def check_mc(table, out: Path, runs: int, workers: int, reference: int | None) -
     passed = False
     if path.exists():
         s = json.loads(path.read_text())
-        kinds: dict = {}
-        for f in s["failed_samples"]:
-            for kind in f["failed"]:
-                kinds[kind] = kinds.get(kind, 0) + 1
-        figures.update({"runs": s["runs"], "passed": s["passed"], "unstable": s["unstable"],
-                        "failures_by_requirement": kinds,
-                        "pass_fraction_lower_90": s["pass_fraction_lower_90"],
-                        "reference_passed": reference})
+        figures.update(mc_figures(s, reference))
         passed = s["unstable"] == 0 and (reference is None or s["passed"] >= reference)
     return [{"check": f"mc {runs} flights", "exit": code, "wall_s": round(wall, 1),
              "gated": True, "passed": passed, "figures": figures}]
