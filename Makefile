@@ -8,7 +8,7 @@
 #                LocalCluster into bags/mc-<UTC time>/ (sets up first; MC_ARGS=..., e.g. --runs 100)
 #   make mutation  mutmut over the core modules, one at a time (MODULE=name: one; docs/TESTING.md)
 #   make soak    the whole suite ROUNDS times (10) with COPIES copies (2) at once (tools/soak.py)
-#   make verify-design  the sign-off checks of TABLE (default: the shipped table), ≈ 25 min
+#   make verify-design  the sign-off checks of TABLE (default: the shipped table), ≈ 20 min
 #   make clean   remove the workspace build products and caches; `make distclean` also .venv
 #
 # Every step is incremental: a second `make setup` with nothing changed does nothing.
@@ -150,7 +150,7 @@ soak: setup
 # Sign-off checks of a controller table (tools/design/verify_table.py): the SIL verdict
 # scenarios, `vega margins --dispersed`, `vega robust --no-mu`, an 852-flight campaign; exit 0
 # when every gated check passes. TABLE (default: the shipped table), VERIFY_ARGS appended,
-# e.g. VERIFY_ARGS="--mc-reference 746"; ≈ 25 min on 2 cores
+# e.g. VERIFY_ARGS="--mc-reference 746"; 19.5 min on 2 quiet cores (2026-11-27)
 TABLE ?= $(WS)/src/vega_gnc/config/tvc_controller.npz
 .PHONY: verify-design
 verify-design: setup
