@@ -27,6 +27,7 @@ its own, denser grid.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from dataclasses import dataclass, field
 from typing import Callable, Mapping, Sequence
 
@@ -66,6 +67,63 @@ PARAMETERS = (
 )
 LOWER = np.array([p[1] for p in PARAMETERS])
 UPPER = np.array([p[2] for p in PARAMETERS])
+
+PINNED_INDICES = (2, 3)
+"""Positions of k_ż and k_z in :data:`PARAMETERS`: the drift gains a schedule holds."""
+DRIFT_GAINS_PATH = Path(__file__).resolve().parent / "data" / "drift_gains.yaml"
+"""The drift-gain schedule `vega design` tunes with by default (since 2026-11-27, eighth
+session; docs/FLIGHT_DESIGN.md §4, "The drift gains"): k_ż and k_z per flight time, written by
+tools/design/drift_schedule.py from the table flown since 2026-11-27 (its step 6 divided out).
+Why: the cost (margins, robustness, crossover) hardly depends on them — two from-scratch tunings
+of the same code differ 5× in k_z at 4 s — while the Monte Carlo load verdicts follow them: the
+first from-scratch table passed 724 of 852 flights, the same table with these drift gains 746.
+The load/drift trade is the designer's choice (§7), so it is an input of the tuning, not one of
+its free parameters."""
+
+
+def load_drift_gains(path=DRIFT_GAINS_PATH) -> tuple:
+    """The schedule's rows ``(t_s, k_ż [mrad/(m/s)], k_z [µrad/m])``; :class:`vega_core.errors.
+    BadFile` (one line naming the file and what is wrong) when it is not one."""
+    from vega_core.documents import load_yaml
+    from vega_core.errors import BadFile
+
+    doc = load_yaml(path, "drift-gain schedule")
+    rows = doc.get("rows")
+    if doc.get("schema_version") != 1 or not isinstance(rows, list) or not rows:
+        raise BadFile(f"{path}: a drift-gain schedule has schema_version 1 and a list of rows")
+    out = []
+    for k, row in enumerate(rows):
+        if (not isinstance(row, list) or len(row) != 3
+                or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                           and math.isfinite(v) for v in row)):
+            raise BadFile(f"{path}: rows[{k}]: three finite numbers [t_s, k_zdot, k_z]")
+        t, kzd, kz = (float(v) for v in row)
+        for name, v, i in (("k_zdot", kzd, 2), ("k_z", kz, 3)):
+            if not LOWER[i] <= v <= UPPER[i]:
+                raise BadFile(f"{path}: rows[{k}]: {name} {v:g} outside the search box "
+                              f"[{LOWER[i]:g}, {UPPER[i]:g}]")
+        if out and t <= out[-1][0]:
+            raise BadFile(f"{path}: rows[{k}]: times must increase ({t:g} after "
+                          f"{out[-1][0]:g})")
+        out.append((t, kzd, kz))
+    return tuple(out)
+
+
+def drift_gains_at(rows, t_s: float):
+    """(k_ż, k_z) of the schedule ``rows`` at ``t_s`` (linear in time, held beyond its ends);
+    None without a schedule."""
+    if rows is None:
+        return None
+    t, kzd, kz = (np.array(c, dtype=float) for c in zip(*rows))
+    return float(np.interp(t_s, t, kzd)), float(np.interp(t_s, t, kz))
+
+
+def pin_drift(x, pin) -> np.ndarray:
+    """``x`` (a copy) with its drift gains set to ``pin`` = (k_ż, k_z); unchanged when None."""
+    x = np.array(x, dtype=float)
+    if pin is not None:
+        x[list(PINNED_INDICES)] = pin
+    return x
 
 RELIEF_PARAMETERS = (
     ("k_acc_mrad_per_mps2", -50.0, 50.0),   # load-relief gain k_a [mrad/(m/s²)]
@@ -540,21 +598,53 @@ def evaluate_discrete(K, ds: DesignSet, detail: bool = False):
 
 
 def tune_point(ds: DesignSet, x0=None, seed: int = 0, maxiter: int = 60,
-               popsize: int = 12, polish_maxfev: int = 1500):
+               popsize: int = 12, polish_maxfev: int = 1500, pin=None):
     """Tune one flight time: differential evolution (seeded, from ``x0`` in its initial
-    population when given), then Nelder–Mead polish. Returns (x, cost, detail)."""
-    x = _search(evaluate, (ds,), x0, seed, maxiter, popsize, polish_maxfev)
+    population when given), then Nelder–Mead polish; with ``pin`` = (k_ż, k_z) the drift gains
+    held there (:func:`drift_gains_at`). Returns (x, cost, detail)."""
+    x = _search(evaluate, (ds,), x0, seed, maxiter, popsize, polish_maxfev, pin=pin)
     cost, detail = evaluate(x, ds, detail=True)
     return x, cost, detail
 
 
-def _search(fun, args, x0, seed, maxiter, popsize, polish_maxfev, callback=None):
+def _search(fun, args, x0, seed, maxiter, popsize, polish_maxfev, callback=None, pin=None):
     """Differential evolution over the parameter box (``x0`` and a cloud around it in the
-    initial population when given), then a Nelder–Mead polish; the better point, clipped."""
+    initial population when given), then a Nelder–Mead polish; the better point, clipped.
+    With ``pin`` = (k_ż, k_z) the two drift gains are held there and the others searched
+    (:data:`DRIFT_GAINS_PATH`)."""
+    n_x = len(PARAMETERS) if x0 is None else np.asarray(x0).size
+    if pin is not None:
+        base = pin_drift(np.zeros(n_x) if x0 is None else x0, pin)
+        free = np.array([i for i in range(n_x) if i not in PINNED_INDICES])
+
+        def expand(y):
+            x = base.copy()
+            x[free] = y
+            return x
+
+        def reduced(y, *a):
+            return fun(expand(y), *a)
+
+        def reduced_callback(yk, convergence=None):
+            return callback(expand(yk), convergence)
+
+        y = _search_box(reduced, args, None if x0 is None else base[free], seed, maxiter,
+                        popsize, polish_maxfev,
+                        None if callback is None else reduced_callback, n_x, free)
+        return expand(y)
+    return _search_box(fun, args, x0, seed, maxiter, popsize, polish_maxfev, callback, n_x)
+
+
+def _search_box(fun, args, x0, seed, maxiter, popsize, polish_maxfev, callback, n_x,
+                free=None):
+    """:func:`_search` over the box of a parameter vector of length ``n_x`` (its indices
+    ``free`` only, when given)."""
     from scipy.optimize import differential_evolution, minimize
 
     # the box of x0's length: PARAMETERS, or with the relief parameters appended
-    LOWER, UPPER = bounds_for(len(PARAMETERS) if x0 is None else np.asarray(x0).size)
+    LOWER, UPPER = bounds_for(n_x)
+    if free is not None:
+        LOWER, UPPER = LOWER[free], UPPER[free]
     bounds = list(zip(LOWER, UPPER))
     init = "latinhypercube"
     if x0 is not None:
@@ -612,7 +702,7 @@ def tail_cost(x, sets: Sequence[DesignSet], transition=None) -> float:
 def tune_tail(context, x0, seed: int = 4000, maxiter: int = TAIL_MAXITER,
               popsize: int = TAIL_POPSIZE, polish_maxfev: int = 1500,
               times_s: Sequence[float] = TAIL_DESIGN_TIMES_S, left=None,
-              progress: Callable[[str], None] | None = None):
+              progress: Callable[[str], None] | None = None, pin=None):
     """Tune the one controller held from :data:`TAIL_OFF_HOLD_S` to burn-out on the design
     sets of ``times_s`` jointly (:func:`tail_cost`), from ``x0`` (e.g. the parameters tuned at
     :data:`TAIL_OFF_HOLD_S` alone); with ``left = (t, x)``, the last grid point before the
@@ -637,7 +727,7 @@ def tune_tail(context, x0, seed: int = 4000, maxiter: int = TAIL_MAXITER,
                      f"{tail_cost(xk, sets, transition):.4f}")
 
     x = _search(tail_cost, (sets, transition), x0, seed, maxiter, popsize, polish_maxfev,
-                report)
+                report, pin=pin)
     details = {float(ds.t_s): evaluate(x, ds, detail=True)[1] for ds in sets}
     if transition is not None:
         for ds in transition[3]:
@@ -707,13 +797,13 @@ def _context_and_set():
 def _anchor_task(args):
     """Tune one time from scratch; the population's seed member is the best of
     :data:`START_X` and the given candidates (e.g. the neighbouring anchors' parameters)."""
-    t_s, seed, maxiter, popsize, polish_maxfev, *candidates = args
+    t_s, seed, maxiter, popsize, polish_maxfev, pin, *candidates = args
     context, uset = _context_and_set()
     ds = design_set(context, t_s, uset)
-    starts = [np.array(START_X)] + [np.asarray(c, float) for c in candidates]
+    starts = [pin_drift(START_X, pin)] + [pin_drift(c, pin) for c in candidates]
     x0 = min(starts, key=lambda c: evaluate(c, ds))
     x, cost, detail = tune_point(ds, x0, seed=seed, maxiter=maxiter,
-                                 popsize=popsize, polish_maxfev=polish_maxfev)
+                                 popsize=popsize, polish_maxfev=polish_maxfev, pin=pin)
     return t_s, x, cost, detail
 
 
@@ -797,20 +887,22 @@ def _interval_task(args):
     """Walk the grid times strictly between two tuned anchors, left to right: start from the
     better of the interpolated parameters and the previous point's (continuation), and re-tune
     (differential evolution seeded there, then Nelder–Mead) where a requirement is missed."""
-    t_left, x_left, t_right, x_right, times, seed, maxiter, popsize, polish_maxfev = args
+    t_left, x_left, t_right, x_right, times, seed, maxiter, popsize, polish_maxfev, pins = args
     context, uset = _context_and_set()
     out, prev = [], np.asarray(x_left)
     for k, t in enumerate(times):
         ds = design_set(context, t, uset)
         w = (t - t_left) / (t_right - t_left)
-        cands = [(1.0 - w) * np.asarray(x_left) + w * np.asarray(x_right), prev]
+        cands = [pin_drift((1.0 - w) * np.asarray(x_left) + w * np.asarray(x_right), pins[k]),
+                 pin_drift(prev, pins[k])]
         costs = [evaluate(c, ds) for c in cands]
         best = int(np.argmin(costs))
         x, how = cands[best], ("interpolated", "continued")[best]
         cost, detail = evaluate(x, ds, detail=True)
         if misses(detail):
             x, cost, detail = tune_point(ds, x, seed=seed + k, maxiter=maxiter,
-                                         popsize=popsize, polish_maxfev=polish_maxfev)
+                                         popsize=popsize, polish_maxfev=polish_maxfev,
+                                         pin=pins[k])
             how = "re-tuned"
         out.append((t, x, cost, detail, how))
         prev = x
@@ -825,7 +917,7 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
                   check_between: bool = True, repair: bool = False,
                   drift_scale: float = DRIFT_RATE_SCALE,
                   drift_worst_case: Callable[[object, object, float], bool] | None = None,
-                  journal=None) -> StructuredDesign:
+                  journal=None, drift_gains=None) -> StructuredDesign:
     """Tune the whole flight.
 
     1. The anchors: differential evolution from scratch (``maxiter`` generations; in
@@ -859,15 +951,25 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
     With a ``journal`` (:class:`.task_journal.TaskJournal`) the tasks of steps 1–5 that
     finished in an earlier, interrupted run of the same code and arguments are reused, not run
     again: the result is the uninterrupted run's.
+
+    With ``drift_gains`` (rows ``(t_s, k_ż, k_z)``, :func:`load_drift_gains`: what `vega
+    design` passes by default) every tuning of steps 1–5 holds the two drift gains at the
+    schedule (:func:`drift_gains_at`) and tunes the twelve other parameters; step 6 scales k_ż
+    after. Without, the drift gains are tuned with the rest (the tables made before
+    2026-11-27, eighth session).
     """
     from vega_model.uncertainty import UncertaintySet
 
     uset = UncertaintySet.from_vehicle(context.vehicle)
+
+    def pin_at(t):
+        return drift_gains_at(drift_gains, t)
+
     anchors = sorted(float(t) for t in anchors_s)
     grid_t = np.unique(np.concatenate([
         anchors, np.arange(math.ceil(anchors[0] / grid_step_s) * grid_step_s, anchors[-1],
                            grid_step_s)]))
-    anchor_tasks = [(t, seed + k, maxiter, popsize, polish_maxfev)
+    anchor_tasks = [(t, seed + k, maxiter, popsize, polish_maxfev, pin_at(t))
                     for k, t in enumerate(anchors) if not anchor_x or t not in anchor_x]
     results = {float(t): (np.asarray(x, float), None) for t, x in (anchor_x or {}).items()}
     done: dict[float, tuple] = {}
@@ -889,14 +991,16 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
         inner = [float(t) for t in grid_t if a + 1e-9 < t < b - 1e-9]
         if inner:
             intervals.append((a, done[a][0], b, done[b][0], inner, seed + 1000 * (k + 1),
-                              local_maxiter, popsize, polish_maxfev))
+                              local_maxiter, popsize, polish_maxfev,
+                              tuple(pin_at(t) for t in inner)))
     for walked in _pool_map(_interval_task, intervals):
         for t, x, cost, detail, how in walked:
             done[t] = (x, detail, how)
             progress(_line(how, t, cost, detail))
     # 3. a grid time that still misses a requirement is tuned from scratch like an anchor
     #    (its walked parameters kept if better): the walk only searches near its neighbours
-    rescue = [(float(t), seed + 2000 + k, maxiter, popsize, polish_maxfev, done[float(t)][0],
+    rescue = [(float(t), seed + 2000 + k, maxiter, popsize, polish_maxfev, pin_at(float(t)),
+               done[float(t)][0],
                *(done[a][0] for a in anchors if abs(a - t) < 10.0 + 1e-9))
               for k, t in enumerate(grid_t) if done[float(t)][2] != "anchor"
               and t <= TAIL_OFF_HOLD_S and misses_requirement(done[float(t)][1])]
@@ -922,7 +1026,7 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
             if misses_requirement(flown_detail):
                 flown_cost[t_mid] = flown
                 missing.append((t_mid, seed + 3000 + len(done) + len(missing), maxiter,
-                                popsize, polish_maxfev, done[a][0], done[b][0]))
+                                popsize, polish_maxfev, pin_at(t_mid), done[a][0], done[b][0]))
         if not missing:
             break
         for t, x, cost, detail in _pool_map(_anchor_task, missing):
@@ -935,7 +1039,9 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
                                "lower)", t, cost, detail))
     # 5. the tail-off: one controller from TAIL_OFF_HOLD_S on, tuned on all its times jointly
     if TAIL_OFF_HOLD_S in done:
-        done = hold_tail(context, done, seed=seed + 4000, progress=progress, journal=journal)
+        done = hold_tail(context, done, seed=seed + 4000, progress=progress, journal=journal,
+                         **({} if drift_gains is None else
+                            {"pin": pin_at(TAIL_OFF_HOLD_S)}))
     # 6. the drift-rate gain after max-Q (load/drift split by dynamic pressure)
     done = scale_drift(context, done, drift_scale, progress=progress,
                        worst_case=drift_worst_case)
@@ -949,6 +1055,8 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
                              "grid_step_s": grid_step_s,
                              "drift": {"factor": drift_scale, "from_s": DRIFT_SCALE_FROM_S,
                                        "worst_case_checked": drift_worst_case is not None},
+                             "drift_gains": ("tuned" if drift_gains is None else
+                                             {"scheduled": True, "rows": len(drift_gains)}),
                              "how": {f"{t:g}": done[float(t)][2] for t in grid_t}})
 
 

@@ -34,6 +34,13 @@ LPV = Path(__file__).resolve().parents[2] / "ros2_ws/src/vega_gnc/config/lpv_con
     (["--out", "{d}/t.npz", "--drift-from", str(LPV), "--journal", "{d}/j.jsonl"],
      "--journal with --drift-from: only the tuning of a full run"),
     (["--out", "{d}/t.npz", "--journal", "{d}"], "is a directory"),
+    (["--out", "{d}/t.npz", "--drift-gains", "{d}/missing.yaml"],
+     "missing.yaml: cannot read drift-gain schedule"),
+    (["--out", "{d}/t.npz", "--drift-gains", str(LPV)], str(LPV)),
+    (["--out", "{d}/t.npz", "--drift-gains", "{d}/g.yaml", "--free-drift-gains"],
+     "--drift-gains and --free-drift-gains: give one of them"),
+    (["--out", "{d}/t.npz", "--tail-from", str(LPV), "--free-drift-gains"],
+     "--free-drift-gains with --tail-from: only a full run, --anchors-from or --repair-from"),
 ])
 def test_bad_arguments(tmp_path, capsys, args, message):
     assert_refused(["design", *(a.replace("{d}", str(tmp_path)) for a in args)], capsys,

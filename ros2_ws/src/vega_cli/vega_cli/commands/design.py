@@ -69,8 +69,8 @@ def _run(args: argparse.Namespace) -> int:
     from offline_synthesis.corner_repair import repair_design
     from offline_synthesis.margins import json_ready
     from offline_synthesis.structured import (
-        PARAMETERS, TAIL_OFF_HOLD_S, design_flight, rescale_drift, retune_tail,
-        write_structured_table,
+        DRIFT_GAINS_PATH, PARAMETERS, TAIL_OFF_HOLD_S, design_flight, load_drift_gains,
+        rescale_drift, retune_tail, write_structured_table,
     )
     # step 6 refuses a drift-rate scaling that loses vega robust's worst-case bending criterion
     # (passed in: robust imports structured)
@@ -94,6 +94,16 @@ def _run(args: argparse.Namespace) -> int:
                           "--anchors-from or --repair-from is journalled")
     if args.journal and Path(args.journal).is_dir():
         raise BadArgument(f"--journal {args.journal}: is a directory")
+    tunes = not (args.tail_from or args.drift_from or args.corner_repair_from)
+    if args.drift_gains and args.free_drift_gains:
+        raise BadArgument("--drift-gains and --free-drift-gains: give one of them")
+    if (args.drift_gains or args.free_drift_gains) and not tunes:
+        raise BadArgument(f"{'--drift-gains' if args.drift_gains else '--free-drift-gains'} "
+                          f"with {given[0]}: only a full run, --anchors-from or --repair-from "
+                          "tunes")
+    drift_gains = None
+    if tunes and not args.free_drift_gains:
+        drift_gains = load_drift_gains(args.drift_gains or DRIFT_GAINS_PATH)  # BadFile: exit 2
     if args.no_corner_repair and (given and not args.anchors_from and not args.repair_from):
         raise BadArgument(f"--no-corner-repair with {given[0]}: that option runs one step "
                           "only, and never the corner repair (or it is the corner repair)")
@@ -168,9 +178,17 @@ def _run(args: argparse.Namespace) -> int:
                                    workers=args.workers, anchor_x=anchor_x,
                                    repair=bool(args.repair_from), **kwargs,
                                    drift_worst_case=worst_case_bending_ok, journal=journal,
+                                   drift_gains=drift_gains,
                                    progress=lambda line: print(line, flush=True))
         finally:
             stop.set()
+        if drift_gains is not None:
+            import hashlib
+
+            gains = Path(args.drift_gains or DRIFT_GAINS_PATH)
+            design.tuning["drift_gains"] = {**design.tuning["drift_gains"], "file": str(gains),
+                                            "sha256": hashlib.sha256(gains.read_bytes())
+                                            .hexdigest()}
         if not args.no_corner_repair:
             design = repair_design(context, design, workers=args.workers,
                                    worst_case=worst_case_bending_ok,
@@ -233,4 +251,11 @@ def register(subparsers) -> None:
                         "(full runs, --anchors-from, --repair-from)")
     p.add_argument("--workers", type=int, default=2,
                    help="processes for the anchors (default 2; 0 = in this process)")
+    p.add_argument("--drift-gains", metavar="FILE.yaml",
+                   help="drift-gain schedule the tuning holds k_zdot and k_z at (default: "
+                        "offline_synthesis/data/drift_gains.yaml; docs/FLIGHT_DESIGN.md "
+                        "section 4, 'The drift gains')")
+    p.add_argument("--free-drift-gains", action="store_true",
+                   help="tune the drift gains with the other parameters (the tables made "
+                        "before 2026-11-27, eighth session)")
     p.set_defaults(func=_run)
