@@ -101,9 +101,15 @@ def _run(args: argparse.Namespace) -> int:
         raise BadArgument(f"{'--drift-gains' if args.drift_gains else '--free-drift-gains'} "
                           f"with {given[0]}: only a full run, --anchors-from or --repair-from "
                           "tunes")
-    drift_gains = None
+    drift_gains, gains_record = None, None
     if tunes and not args.free_drift_gains:
-        drift_gains = load_drift_gains(args.drift_gains or DRIFT_GAINS_PATH)  # BadFile: exit 2
+        import hashlib
+
+        gains = Path(args.drift_gains or DRIFT_GAINS_PATH)
+        drift_gains = load_drift_gains(gains)                  # BadFile: one line, exit 2
+        # what was read, not what the file holds hours later when the run ends
+        gains_record = {"file": str(gains),
+                        "sha256": hashlib.sha256(gains.read_bytes()).hexdigest()}
     if args.no_corner_repair and (given and not args.anchors_from and not args.repair_from):
         raise BadArgument(f"--no-corner-repair with {given[0]}: that option runs one step "
                           "only, and never the corner repair (or it is the corner repair)")
@@ -182,13 +188,8 @@ def _run(args: argparse.Namespace) -> int:
                                    progress=lambda line: print(line, flush=True))
         finally:
             stop.set()
-        if drift_gains is not None:
-            import hashlib
-
-            gains = Path(args.drift_gains or DRIFT_GAINS_PATH)
-            design.tuning["drift_gains"] = {**design.tuning["drift_gains"], "file": str(gains),
-                                            "sha256": hashlib.sha256(gains.read_bytes())
-                                            .hexdigest()}
+        if gains_record is not None:
+            design.tuning["drift_gains"] = {**design.tuning["drift_gains"], **gains_record}
         if not args.no_corner_repair:
             design = repair_design(context, design, workers=args.workers,
                                    worst_case=worst_case_bending_ok,
