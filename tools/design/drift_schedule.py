@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from undo_drift import unscaled
 
 
 def schedule(table: Path) -> tuple[list[list[float]], dict]:
@@ -30,15 +31,14 @@ def schedule(table: Path) -> tuple[list[list[float]], dict]:
     if meta.get("design") != "structured":
         raise SystemExit(f"{table}: not a structured design table")
     drift = meta["solver"].get("drift", {})
-    how = meta["solver"].get("how", {})
-    rows = []
-    for t, x in zip(meta["grid_times_s"], meta["parameters_per_grid_time"]):
-        if float(t) > S.TAIL_OFF_HOLD_S + 1e-9:
-            break
-        k_zdot = float(x[S.DRIFT_RATE_INDEX])
-        if "(drift, step 6)" in how.get(f"{float(t):g}", ""):
-            k_zdot /= float(drift["factor"])
-        rows.append([float(t), k_zdot, float(x[S.DRIFT_RATE_INDEX + 1])])
+    if drift:            # step 6 divided out as undo_drift.py does it (one rule, one place)
+        times, xs, _ = unscaled(meta)
+    else:
+        times = [float(t) for t in meta["grid_times_s"]]
+        xs = [np.array(x, dtype=float) for x in meta["parameters_per_grid_time"]]
+    k_zdot, k_z = S.PINNED_INDICES
+    rows = [[t, float(x[k_zdot]), float(x[k_z])] for t, x in zip(times, xs)
+            if t <= S.TAIL_OFF_HOLD_S + 1e-9]
     source = {"table": str(table), "sha256": hashlib.sha256(table.read_bytes()).hexdigest(),
               "created_utc": meta.get("created_utc"), "git_revision": meta.get("git_revision"),
               "step_6_divided_out": drift}
