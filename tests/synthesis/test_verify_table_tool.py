@@ -6,7 +6,9 @@ gates on them (a campaign passing fewer flights than the reference fails the sig
 dispersed figures are read from a hand-made margins summary.
 """
 
+import hashlib
 import json
+import shutil
 import sys
 from pathlib import Path
 
@@ -79,6 +81,11 @@ def test_a_short_real_sign_off_reports_and_gates(tmp_path, capsys):
                    "--runs", "2", "--mc-reference", "3", "--workers", "1"])
     report = json.loads((out / "verify.json").read_text())
     assert code == 1 and report["signed_off"] is False
+    # the record names the bytes it verified and how far it went (ship_table.py reads both)
+    assert report["table_sha256"] == hashlib.sha256(SHIPPED.read_bytes()).hexdigest()
+    assert report["scope"] == {"checks": ["margins", "mc"],
+                               "scenarios": list(V.GATED_SCENARIOS + V.REPORTED_SCENARIOS),
+                               "at": "43", "runs": 2, "mc_reference": 3}
     margins, mc = report["checks"]
     assert margins["check"] == "margins --dispersed" and margins["exit"] == 0
     assert margins["passed"] and margins["figures"]["unstable_loops"] == 0
@@ -90,3 +97,27 @@ def test_a_short_real_sign_off_reports_and_gates(tmp_path, capsys):
     assert (out / "mc" / "summary.json").exists() and (out / "margins.log").exists()
     printed = capsys.readouterr().out
     assert "mc 2 flights: FAIL" in printed and "a gated check FAILED" in printed
+
+
+def test_a_table_changed_while_the_checks_run_is_not_signed_off(tmp_path, monkeypatch, capsys):
+    """The SHA-256 is taken when the table is read; a file changed before the record is written
+    (here by the SIL check itself, the one check stood in for) is no sign-off of any bytes,
+    even with every gated check passed."""
+    table = tmp_path / "t.npz"
+    shutil.copyfile(SHIPPED, table)
+    read = hashlib.sha256(table.read_bytes()).hexdigest()
+
+    def sil_that_edits_the_table(path, out, scenarios):
+        with open(path, "ab") as f:
+            f.write(b"\0")
+        return [{"check": "sil nominal", "exit": 0, "wall_s": 0.0, "gated": True,
+                 "passed": True, "figures": {}}]
+
+    monkeypatch.setattr(V, "check_sil", sil_that_edits_the_table)
+    out = tmp_path / "v"
+    assert V.main([str(table), "--out", str(out), "--checks", "sil",
+                   "--scenarios", "nominal"]) == 1
+    report = json.loads((out / "verify.json").read_text())
+    assert report["signed_off"] is False and report["table_sha256"] == read
+    assert report["checks"][0]["passed"]
+    assert "changed while the checks ran: not signed off" in capsys.readouterr().out

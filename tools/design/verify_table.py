@@ -18,9 +18,12 @@ Checks (each the repository's own command, run as a subprocess, its output kept 
   drift failures reported (and compared with ``--mc-reference PASSED`` when given: a design
   that passes fewer flights than the shipped one is reported as such, and gated).
 
-Writes OUT/verify.json (per check: command, exit status, wall time, figures, verdict) and
-prints one line per check. Exit 0 when every gated check passes, 1 when one fails, 2 on bad
-input (one line, before anything runs).
+Writes OUT/verify.json (the table's path and SHA-256, the scope of the checks — which checks,
+scenarios, frozen times, flights and reference —, per check: command, exit status, wall time,
+figures, verdict) and prints one line per check; ``tools/design/ship_table.py OUT`` ships a
+table only from a complete, passed record of its own bytes. Exit 0 when every gated check
+passes, 1 when one fails (or the table file changed while the checks ran: the record is then
+not a sign-off of any bytes), 2 on bad input (one line, before anything runs).
 
 Usage: .venv/bin/vega-env python tools/design/verify_table.py TABLE --out DIR
        [--checks sil,margins,robust,mc] [--scenarios A,B] [--runs 852] [--mc-reference 746]
@@ -30,10 +33,12 @@ Usage: .venv/bin/vega-env python tools/design/verify_table.py TABLE --out DIR
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import subprocess
 import sys
 import time
+from datetime import datetime, timezone
 from pathlib import Path
 
 from vega_core.errors import BadInput, one_line
@@ -147,6 +152,12 @@ def check_mc(table, out: Path, runs: int, workers: int, reference: int | None) -
              "gated": True, "passed": passed, "figures": figures}]
 
 
+def sha256_of(path: Path) -> str:
+    """The SHA-256 of the file at ``path`` (hex): ties a sign-off record to the table's bytes,
+    so `ship_table.py` can refuse a table changed after it was verified."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
 def parse(argv):
     """The command line (module docstring)."""
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -202,6 +213,7 @@ def main(argv=None) -> int:
         print(f"verify_table: {exc}", file=sys.stderr)
         return 2
     out.mkdir(parents=True, exist_ok=True)
+    digest = sha256_of(table)               # when it is read, not when the checks end
     results = []
     for check in checks:
         print(f"verify_table: {check} …", flush=True)
@@ -220,11 +232,18 @@ def main(argv=None) -> int:
             print(f"  {r['check']}: {verdict} (exit {r['exit']}, {r['wall_s']:.0f} s)"
                   + (f" {json.dumps(shown)}" if shown else ""), flush=True)
         results.extend(got)
-    ok = all(r["passed"] for r in results if r["gated"])
+    changed = sha256_of(table) != digest
+    ok = all(r["passed"] for r in results if r["gated"]) and not changed
     (out / "verify.json").write_text(json.dumps(
-        {"table": str(table), "checks": results, "signed_off": ok}, indent=1) + "\n")
-    print(f"verify_table: {'every gated check passed' if ok else 'a gated check FAILED'}; "
-          f"{out / 'verify.json'}")
+        {"table": str(table), "table_sha256": digest,
+         "scope": {"checks": checks, "scenarios": scenarios, "at": args.at, "runs": args.runs,
+                   "mc_reference": args.mc_reference},
+         "finished_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+         "checks": results, "signed_off": ok}, indent=1) + "\n")
+    verdict = ("every gated check passed" if ok else
+               f"{table} changed while the checks ran: not signed off" if changed else
+               "a gated check FAILED")
+    print(f"verify_table: {verdict}; {out / 'verify.json'}")
     return 0 if ok else 1
 
 
