@@ -112,7 +112,7 @@ $(VENV)/bin/vega-env: $(ROOT)/Makefile | $(VENV)/bin/python
 # sys.path, and from the repository root the project directory offline_synthesis/ would shadow
 # the installed package offline_synthesis (the contracts would check nothing of it).
 lint: setup
-	cd $(ROOT) && $(VENV)/bin/ruff check ros2_ws/src offline_synthesis tests bench
+	cd $(ROOT) && $(VENV)/bin/ruff check ros2_ws/src offline_synthesis tests bench tools
 	cd $(WS) && $(VENV)/bin/vega-env lint-imports --no-logo --no-cache $(ROOT)/pyproject.toml
 
 test: setup lint
