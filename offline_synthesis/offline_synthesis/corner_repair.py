@@ -40,10 +40,15 @@ at 34.5 s) removed the misses. This step is that practice written down as a rule
 
 Candidates are screened on the missed (time, corner) loops alone (a few loops each); only those
 that remove a miss there get the full check (all corners of both intervals). The tail-off
-(from 86 s, one controller held over several grid points, the 86 s point included) is checked
-but not edited here: a miss there is reported in the record. Cost on two cores: the check of
-the whole flight ≈ 6 min at load ≈ 1 (as `vega margins --dispersed`), then ≈ 0.5 min per
-repaired point.
+(from 86 s, one controller held over several grid points, the 86 s point included) is edited
+as one (:func:`units_of`): an edit moves the parameter at every grid point of the hold, its
+full check covers every interval of the tail-off and the one into it, its design-set check
+every grid time of the hold and every midpoint. Until 2026-12-02 the hold was checked but not
+edited; the second from-scratch run (`design_runs/seed1-scheduled/`) then left 9 misses there
+(mode 1 at −5.93 dB at four corners at 86 and 86.5 s, mode 2 at one corner at 100 s), which a
+deeper second notch or a lower second low-pass removes. Cost on two cores: the check of the
+whole flight ≈ 6 min at load ≈ 1 (as `vega margins --dispersed`), then ≈ 0.5 min per
+repaired point, ≈ 2 min for the hold (its 29 times).
 """
 
 from __future__ import annotations
@@ -61,7 +66,7 @@ from offline_synthesis.margins import (
 
 __all__ = ["EDITS", "MAX_ROUNDS", "bending_slack", "row_misses", "interval_times",
            "candidate", "check_intervals", "repair_corner_bending", "recheck_design",
-           "repair_design"]
+           "units_of", "repair_design"]
 
 EDITS = (
     # (parameter, "scale" or "add", amount, mode it acts on)
@@ -202,30 +207,42 @@ def _misses(rows) -> set:
     return out
 
 
-def recheck_design(context, uset, t_s, x_new, x_old, left, right) -> bool:
-    """No requirement miss added on the design set of the edited point at ``t_s`` nor of the
-    flown controller midway to the neighbours ``left`` / ``right`` ((t, x) or None)."""
+def recheck_design(context, uset, new: Mapping[float, np.ndarray],
+                   old: Mapping[float, np.ndarray], intervals: Sequence[tuple]) -> bool:
+    """No requirement miss added by an edit: ``new`` and ``old`` map the edited grid times to
+    their parameters after and before it (one point, or every point of the tail-off hold),
+    ``intervals`` are the ``((t_a, x_a), (t_b, x_b))`` neighbour pairs the edited points fly
+    in, with the parameters before the edit. Checked on the design set of every edited grid
+    time and of the flown controller midway through every interval."""
     def no_worse(K_new, K_old, at):
         ds = S.design_set(context, at, uset)
-        new = S.requirement_misses(S.evaluate_discrete(K_new, ds, detail=True)[1])
-        old = S.requirement_misses(S.evaluate_discrete(K_old, ds, detail=True)[1])
-        return all(a <= b for a, b in zip(new, old))
+        after = S.requirement_misses(S.evaluate_discrete(K_new, ds, detail=True)[1])
+        before = S.requirement_misses(S.evaluate_discrete(K_old, ds, detail=True)[1])
+        return all(a <= b for a, b in zip(after, before))
 
     dt = 1.0 / float(context.vehicle["controller.rate_hz"])
-    omega = context.parameters(float(t_s)).omega_radps
-    if not no_worse(S.discretise(*S.controller_ss(x_new, omega), dt),
-                    S.discretise(*S.controller_ss(x_old, omega), dt), float(t_s)):
-        return False
-    for nb in (left, right):
-        if nb is None:
-            continue
-        a, b = sorted(((float(t_s), x_new), nb), key=lambda p: p[0])
-        a_old, b_old = sorted(((float(t_s), x_old), nb), key=lambda p: p[0])
-        mid = 0.5 * (a[0] + b[0])
-        if not no_worse(S.flown_between(context, a, b, mid),
-                        S.flown_between(context, a_old, b_old, mid), mid):
+    for t_s in sorted(new):
+        omega = context.parameters(float(t_s)).omega_radps
+        if not no_worse(S.discretise(*S.controller_ss(new[t_s], omega), dt),
+                        S.discretise(*S.controller_ss(old[t_s], omega), dt), float(t_s)):
+            return False
+    for (ta, xa), (tb, xb) in intervals:
+        a_new = (ta, new.get(ta, xa))
+        b_new = (tb, new.get(tb, xb))
+        mid = 0.5 * (ta + tb)
+        if not no_worse(S.flown_between(context, a_new, b_new, mid),
+                        S.flown_between(context, (ta, xa), (tb, xb), mid), mid):
             return False
     return True
+
+
+def units_of(times: Sequence[float], until_s: float) -> list[tuple]:
+    """What step 7 edits, each as a tuple of grid times: every grid point before ``until_s``
+    alone, and the grid points from ``until_s`` on together (the tail-off hold: they hold one
+    controller, so one edit moves them all)."""
+    times = sorted(float(t) for t in times)
+    hold = tuple(t for t in times if t >= until_s - 1e-9)
+    return [(t,) for t in times if t < until_s - 1e-9] + ([hold] if hold else [])
 
 
 def repair_corner_bending(context, done: Mapping[float, tuple],
@@ -238,8 +255,10 @@ def repair_corner_bending(context, done: Mapping[float, tuple],
     and a record ``{"edits": [...], "misses_before": n, "misses_after": n, "left":
     [(t, corner, criterion), ...], "corners": n}``.
 
-    ``corner_ids`` (default every corner of :func:`.margins.dispersed_corners`) and ``rows``
-    (the check of step 7.1 already made, left grid time → rows) exist for tests and re-runs."""
+    ``until_s`` is where the tail-off hold starts (:func:`units_of`: the grid points from it on
+    are edited as one). ``corner_ids`` (default every corner of :func:`.margins.
+    dispersed_corners`) and ``rows`` (the check of step 7.1 already made, left grid time →
+    rows) exist for tests and re-runs."""
     from vega_model.uncertainty import UncertaintySet
 
     uset = UncertaintySet.from_vehicle(context.vehicle)
@@ -248,60 +267,62 @@ def repair_corner_bending(context, done: Mapping[float, tuple],
     say = progress or (lambda line: None)
     done = dict(done)
     times = sorted(done)
-    # the hold point itself is not edited: the grid points after it hold the same controller
-    editable = [t for t in times if t < until_s - 1e-9]
-    if rows is None:        # the whole flight is checked; the tail-off misses are reported
+    units = units_of(times, until_s)
+    if rows is None:        # the whole flight, the tail-off included
         rows = check_intervals(context, done, ids, math.inf, workers, progress)
     by_left = {float(a): list(r) for a, r in rows.items()}
     first = times[0]
+    eps = 1e-9
 
-    def intervals_of(t):
-        """The (left, right) grid-time pairs whose flown controller uses point ``t``."""
-        k = times.index(t)
-        out = []
-        if k > 0:
-            out.append((times[k - 1], t))
-        if k + 1 < len(times) and times[k + 1] <= until_s + 1e-9:
-            out.append((t, times[k + 1]))
-        return out
+    def intervals_of(unit):
+        """The (left, right) neighbour pairs of grid times whose flown controller uses a point
+        of ``unit``."""
+        return [(a, b) for a, b in zip(times[:-1], times[1:]) if a in unit or b in unit]
 
-    def misses_at(t):
-        return set().union(*(_misses(by_left.get(a, [])) for a, _ in intervals_of(t)))
+    def misses_at(unit):
+        return set().union(*(_misses(by_left.get(a, [])) for a, _ in intervals_of(unit)))
+
+    def name(unit):
+        return f"{unit[0]:g} s" if len(unit) == 1 else f"{unit[0]:g}–{unit[-1]:g} s (hold)"
 
     before = set().union(*(_misses(r) for r in by_left.values())) if by_left else set()
     edits = []
     for rnd in range(1, MAX_ROUNDS + 1):
-        todo = sorted((t for t in editable if misses_at(t)), key=lambda t: -len(misses_at(t)))
+        todo = sorted((u for u in units if misses_at(u)), key=lambda u: -len(misses_at(u)))
         if not todo:
             break
         changed = False
-        for t in todo:
-            old_miss = misses_at(t)
+        for unit in todo:
+            old_miss = misses_at(unit)
             if not old_miss:
                 continue
-            x_old = np.asarray(done[t][0], dtype=float)
+            x_old = {t: np.asarray(done[t][0], dtype=float) for t in unit}
             modes = {int(c[-1][-1]) for c in old_miss if c[2].startswith("bending")} or {1, 2}
+            pairs = intervals_of(unit)
+
+            def flown(a, b, x_new):
+                return S._pair_table(context, (a, x_new.get(a, done[a][0])),
+                                     (b, x_new.get(b, done[b][0])))
+
             screened = []
             for edit in EDITS:
                 if edit[3] not in modes:
                     continue
-                x_new = candidate(x_old, edit)
-                if x_new is None:
+                x_new = {t: candidate(x_old[t], edit) for t in unit}
+                if any(x is None for x in x_new.values()):
                     continue
                 # screening: the missed loops only
                 fixed, slack = 0, math.inf
-                for a, b in intervals_of(t):
-                    # the loops flown with this point: not those at the other end point
-                    # itself (its own controller alone flies there)
-                    other = b if a == t else a
+                for a, b in pairs:
+                    # the loops flown with the unit's points: not those at an end point
+                    # outside it (that point's own controller alone flies there)
+                    others = [o for o in (a, b) if o not in unit]
                     missed = {(tm, c) for tm, c, _ in old_miss
-                              if (a < tm <= b + 1e-9 or (a == first and tm <= a + 1e-9))
-                              and abs(tm - other) > 1e-9}
+                              if (a < tm <= b + eps or (a == first and tm <= a + eps))
+                              and all(abs(tm - o) > eps for o in others)}
                     if not missed:
                         continue
-                    pa = (a, x_new if a == t else done[a][0])
-                    pb = (b, x_new if b == t else done[b][0])
-                    pair = S._pair_table(context, pa, pb)
+                    pair = flown(a, b, x_new)
                     if pair is None:
                         continue
                     for tm in sorted({tm for tm, _ in missed}):
@@ -318,22 +339,18 @@ def repair_corner_bending(context, done: Mapping[float, tuple],
                     screened.append((-fixed, -slack, edit, x_new))
             accepted = None
             for _, _, edit, x_new in sorted(screened, key=lambda s: s[:2]):
-                k = times.index(t)
-                left = (times[k - 1], done[times[k - 1]][0]) if k > 0 else None
-                right = (times[k + 1], done[times[k + 1]][0]) if k + 1 < len(times) else None
-                if not recheck_design(context, uset, t, x_new, x_old, left, right):
-                    say(f"corner repair t = {t:g} s: {edit[0]} {edit[1]} {edit[2]:g} refused "
+                if not recheck_design(context, uset, x_new, x_old,
+                                      [((a, done[a][0]), (b, done[b][0])) for a, b in pairs]):
+                    say(f"corner repair {name(unit)}: {edit[0]} {edit[1]} {edit[2]:g} refused "
                         "(adds a requirement miss on a design set)")
                     continue
                 new_rows, ok = {}, True
-                for a, b in intervals_of(t):
-                    pa = (a, x_new if a == t else done[a][0])
-                    pb = (b, x_new if b == t else done[b][0])
-                    pair = S._pair_table(context, pa, pb)
+                for a, b in pairs:
+                    pair = flown(a, b, x_new)
                     new_rows[a] = ([] if pair is None else _analyse(
                         context, pair, interval_times(a, b, first=(a == first)),
                         [(i, corners[i]) for i in ids]))
-                    if worst_case is not None and pair is not None:
+                    if worst_case is not None and pair is not None and ok:
                         old_pair = S._pair_table(context, (a, done[a][0]), (b, done[b][0]))
                         for tau in S.worst_case_times(a, b):
                             if not worst_case(pair, context, tau) and worst_case(
@@ -342,29 +359,32 @@ def repair_corner_bending(context, done: Mapping[float, tuple],
                                 break
                 new_miss = set().union(*(_misses(r) for r in new_rows.values()))
                 if not ok or not (new_miss < old_miss):
-                    say(f"corner repair t = {t:g} s: {edit[0]} {edit[1]} {edit[2]:g} refused "
+                    say(f"corner repair {name(unit)}: {edit[0]} {edit[1]} {edit[2]:g} refused "
                         f"({'worst case' if not ok else 'misses'} {len(old_miss)} -> "
                         f"{len(new_miss)}{'' if new_miss <= old_miss else ', new ones'})")
                     continue
                 accepted = (edit, x_new, new_rows, new_miss)
                 break
             if accepted is None:
-                say(f"corner repair t = {t:g} s: no candidate removes a miss "
+                say(f"corner repair {name(unit)}: no candidate removes a miss "
                     f"({len(old_miss)} left)")
                 continue
             edit, x_new, new_rows, new_miss = accepted
             i = [p[0] for p in S.PARAMETERS].index(edit[0])
-            ds = S.design_set(context, t, uset)
-            _, detail = S.evaluate(x_new, ds, detail=True)
-            how = (f"{done[t][2]}; {edit[0]} {x_old[i]:.6g} -> {x_new[i]:.6g} "
-                   "(corner repair, step 7)")
-            done[t] = (x_new, detail, how)
+            for t in unit:
+                _, detail = S.evaluate(x_new[t], S.design_set(context, t, uset), detail=True)
+                how = (f"{done[t][2]}; {edit[0]} {x_old[t][i]:.6g} -> {x_new[t][i]:.6g} "
+                       "(corner repair, step 7)")
+                done[t] = (x_new[t], detail, how)
             by_left.update(new_rows)
-            edits.append({"t_s": float(t), "parameter": edit[0], "from": float(x_old[i]),
-                          "to": float(x_new[i]), "round": rnd,
-                          "misses": [len(old_miss), len(new_miss)]})
-            say(f"corner repair t = {t:g} s: {edit[0]} {x_old[i]:.4g} -> {x_new[i]:.4g}, "
-                f"misses in its intervals {len(old_miss)} -> {len(new_miss)}")
+            t0 = unit[0]
+            edits.append({"t_s": float(t0), "parameter": edit[0], "from": float(x_old[t0][i]),
+                          "to": float(x_new[t0][i]), "round": rnd,
+                          "misses": [len(old_miss), len(new_miss)],
+                          **({"held_s": [float(t) for t in unit]} if len(unit) > 1 else {})})
+            say(f"corner repair {name(unit)}: {edit[0]} {x_old[t0][i]:.4g} -> "
+                f"{x_new[t0][i]:.4g}, misses in its intervals {len(old_miss)} -> "
+                f"{len(new_miss)}")
             changed = True
         if not changed:
             break

@@ -156,13 +156,35 @@ def test_the_worst_case_check_refuses_an_edit_that_loses_it(context, monkeypatch
     assert record["worst_case_checked"] is True
 
 
-def test_the_tail_off_hold_point_is_not_edited(context):
-    """A miss flown by the held tail-off controller alone (at the hold time itself) is
-    reported, not repaired: the points after it hold the same controller."""
-    done, _, _ = _done_before_43_edit()
-    # the 42.5–44 s points as if 43 s were the hold time: the misses at 43 s are flown by the
-    # hold point alone; 42.5 s could only change what flies in (42.5, 43) s, where none is
-    new, record = R.repair_corner_bending(context, {t: done[t] for t in (42.5, 43.0)},
-                                          corner_ids=CORNERS, until_s=43.0, workers=0)
-    assert record["edits"] == [] and record["misses_after"] == 2
-    assert np.array_equal(new[43.0][0], done[43.0][0])
+def test_units_hold_the_tail_off_together():
+    assert R.units_of([44.0, 42.5, 43.0, 86.0, 90.0, 88.0], 86.0) == [
+        (42.5,), (43.0,), (44.0,), (86.0, 88.0, 90.0)]
+    assert R.units_of([42.5, 43.0], np.inf) == [(42.5,), (43.0,)]
+    # no grid point at the hold time itself: the points after it are the hold
+    assert R.units_of([84.0, 87.0, 90.0], 86.0) == [(84.0,), (87.0, 90.0)]
+
+
+def test_the_tail_off_hold_is_edited_as_one(context):
+    """Misses flown by the held tail-off controller (here: the hold from 43 s, the 44 s point
+    holding the 43 s parameters) are repaired by one edit of every point of the hold; a point
+    before the hold cannot act on a miss at the hold time itself and is not touched."""
+    done, i, _ = _done_before_43_edit()
+    held = {42.5: done[42.5], 43.0: done[43.0], 44.0: (done[43.0][0].copy(), None, "held")}
+    new, record = R.repair_corner_bending(context, held, corner_ids=CORNERS, until_s=43.0,
+                                          workers=0)
+    assert record["misses_before"] >= 2           # 536 and 568 at 43 s at least
+    assert record["misses_after"] == 0 and record["left"] == []
+    (made,) = record["edits"]
+    assert made["t_s"] == 43.0 and made["held_s"] == [43.0, 44.0]
+    assert np.array_equal(new[42.5][0], held[42.5][0])
+    assert np.array_equal(new[43.0][0], new[44.0][0])       # still one held controller
+    assert np.count_nonzero(new[43.0][0] != held[43.0][0]) == 1
+    assert "corner repair, step 7" in new[44.0][2]
+    # independent re-check on both intervals flown with the hold: every loop meets the criterion
+    uset = _uset(context)
+    for (a, b), times in (((42.5, 43.0), [43.0]), ((43.0, 44.0), [43.5, 44.0])):
+        pair = S._pair_table(context, (a, new[a][0]), (b, new[b][0]))
+        rows = R._analyse(context, pair, times,
+                          [(c, R.dispersed_corners(uset)[c]) for c in CORNERS])
+        for row in rows:
+            assert bending_ok(row, 1) and bending_ok(row, 2) and row["n_unstable"] == 0
