@@ -48,7 +48,8 @@ edited; the second from-scratch run (`design_runs/seed1-scheduled/`) then left 9
 (mode 1 at −5.93 dB at four corners at 86 and 86.5 s, mode 2 at one corner at 100 s), which a
 deeper second notch or a lower second low-pass removes. Cost on two cores: the check of the
 whole flight ≈ 6 min at load ≈ 1 (as `vega margins --dispersed`), then ≈ 0.5 min per
-repaired point, ≈ 2 min for the hold (its 29 times).
+repaired point; the hold (32 times from 84.5 to 100 s) took ≈ 8.5 min on 2026-12-02 (1 383 s
+in all, 870 s of them the check, beside a verification: not a timing figure).
 """
 
 from __future__ import annotations

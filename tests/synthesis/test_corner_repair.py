@@ -168,7 +168,7 @@ def test_the_tail_off_hold_is_edited_as_one(context):
     """Misses flown by the held tail-off controller (here: the hold from 43 s, the 44 s point
     holding the 43 s parameters) are repaired by one edit of every point of the hold; a point
     before the hold cannot act on a miss at the hold time itself and is not touched."""
-    done, i, _ = _done_before_43_edit()
+    done, _, _ = _done_before_43_edit()
     held = {42.5: done[42.5], 43.0: done[43.0], 44.0: (done[43.0][0].copy(), None, "held")}
     new, record = R.repair_corner_bending(context, held, corner_ids=CORNERS, until_s=43.0,
                                           workers=0)
