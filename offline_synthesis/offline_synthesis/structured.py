@@ -72,57 +72,98 @@ PINNED_INDICES = (2, 3)
 """Positions of k_ż and k_z in :data:`PARAMETERS`: the drift gains a schedule holds."""
 DRIFT_GAINS_PATH = Path(__file__).resolve().parent / "data" / "drift_gains.yaml"
 """The drift-gain schedule `vega design` tunes with by default (since 2026-11-27, eighth
-session; docs/FLIGHT_DESIGN.md §4, "The drift gains"): k_ż and k_z per flight time, written by
-tools/design/drift_schedule.py from the table flown since 2026-11-27 (its step 6 divided out).
-Why: the cost (margins, robustness, crossover) hardly depends on them — two from-scratch tunings
-of the same code differ 5× in k_z at 4 s — while the Monte Carlo load verdicts follow them: the
-first from-scratch table passed 724 of 852 flights, the same table with these drift gains 746.
-The load/drift trade is the designer's choice (§7), so it is an input of the tuning, not one of
-its free parameters."""
+session; docs/FLIGHT_DESIGN.md §4, "The drift gains"): written by tools/design/drift_schedule.py
+from the table flown since 2026-11-27 (its step 6 divided out). Why: the cost (margins,
+robustness, crossover) hardly depends on them — two from-scratch tunings of the same code differ
+5× in k_z at 4 s — while the Monte Carlo load verdicts follow them: the first from-scratch table
+passed 724 of 852 flights, the same table with these drift gains 746. The load/drift trade is
+the designer's choice (§7), so it is an input of the tuning, not one of its free parameters.
+
+Since 2026-12-02 (schema 2) the schedule holds the drift gains *per unit k_θ*: g_ż = k_ż/k_θ
+and g_z = k_z/k_θ, the attitude the drift loop commands per m/s of drift rate and per m of
+drift (u = F·k_θ·(θ + τ_d·θ̇ + g_z·z + g_ż·ż), :func:`controller_ss`), and the tuning sets
+k_ż = g_ż·k_θ, k_z = g_z·k_θ for whatever k_θ it tries (:func:`pin_drift`). Why: with k_ż and k_z
+held as absolute gains, a tuning that makes the attitude loop 9 % softer at 80–84 s (k_θ 0.395
+against 0.43) commands 9 % more attitude per unit drift, and the second from-scratch table lost
+5 weak-wind Monte Carlo flights to Qα at Mach 4.8–5.0 (80–83 s) that the flown table passes;
+the same table with its drift gains set to the flown table's g_ż, g_z passes 4 of them
+(docs/FLIGHT_DESIGN.md §4)."""
 
 
-def load_drift_gains(path=DRIFT_GAINS_PATH) -> tuple:
-    """The schedule's rows ``(t_s, k_ż [mrad/(m/s)], k_z [µrad/m])``; :class:`vega_core.errors.
-    BadFile` (one line naming the file and what is wrong) when it is not one."""
+@dataclass(frozen=True)
+class DriftSchedule:
+    """A drift-gain schedule: rows ``(t_s, a, b)``; with ``per_k_theta`` (schema 2) a = g_ż
+    [mrad/(m/s) per rad/rad] and b = g_z [µrad/m per rad/rad], else (schema 1) a = k_ż
+    [mrad/(m/s)] and b = k_z [µrad/m]."""
+
+    rows: tuple
+    per_k_theta: bool = True
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+
+def load_drift_gains(path=DRIFT_GAINS_PATH) -> DriftSchedule:
+    """The schedule in ``path`` (schema 1: absolute gains, schema 2: per unit k_θ);
+    :class:`vega_core.errors.BadFile` (one line naming the file and what is wrong) when it is
+    not one."""
     from vega_core.documents import load_yaml
     from vega_core.errors import BadFile
 
     doc = load_yaml(path, "drift-gain schedule")
     rows = doc.get("rows")
-    if doc.get("schema_version") != 1 or not isinstance(rows, list) or not rows:
-        raise BadFile(f"{path}: a drift-gain schedule has schema_version 1 and a list of rows")
+    version = doc.get("schema_version")
+    if version not in (1, 2) or not isinstance(rows, list) or not rows:
+        raise BadFile(f"{path}: a drift-gain schedule has schema_version 1 or 2 and a list of "
+                      "rows")
+    names = ("k_zdot", "k_z") if version == 1 else ("g_zdot", "g_z")
     out = []
     for k, row in enumerate(rows):
         if (not isinstance(row, list) or len(row) != 3
                 or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
                            and math.isfinite(v) for v in row)):
-            raise BadFile(f"{path}: rows[{k}]: three finite numbers [t_s, k_zdot, k_z]")
-        t, kzd, kz = (float(v) for v in row)
-        for name, v, i in (("k_zdot", kzd, 2), ("k_z", kz, 3)):
-            if not LOWER[i] <= v <= UPPER[i]:
+            raise BadFile(f"{path}: rows[{k}]: three finite numbers [t_s, {names[0]}, "
+                          f"{names[1]}]")
+        t, a, b = (float(v) for v in row)
+        # absolute gains must lie in their search box; gains per unit k_θ must too at k_θ = 1
+        # (the pinned gains are clipped to the box at any k_θ: pin_drift)
+        for name, v, i in ((names[0], a, 2), (names[1], b, 3)):
+            if version == 1 and not LOWER[i] <= v <= UPPER[i]:
                 raise BadFile(f"{path}: rows[{k}]: {name} {v:g} outside the search box "
                               f"[{LOWER[i]:g}, {UPPER[i]:g}]")
+            if version == 2 and abs(v) > 10.0 * max(abs(LOWER[i]), abs(UPPER[i])):
+                raise BadFile(f"{path}: rows[{k}]: {name} {v:g} beyond 10× the search box "
+                              f"of {PARAMETERS[i][0]} per unit k_θ")
         if out and t <= out[-1][0]:
             raise BadFile(f"{path}: rows[{k}]: times must increase ({t:g} after "
                           f"{out[-1][0]:g})")
-        out.append((t, kzd, kz))
-    return tuple(out)
+        out.append((t, a, b))
+    return DriftSchedule(tuple(out), per_k_theta=version == 2)
 
 
-def drift_gains_at(rows, t_s: float):
-    """(k_ż, k_z) of the schedule ``rows`` at ``t_s`` (linear in time, held beyond its ends);
-    None without a schedule."""
-    if rows is None:
+def drift_gains_at(schedule, t_s: float):
+    """The pin of ``schedule`` at ``t_s`` (linear in time, held beyond its ends): ``(k_ż, k_z)``
+    for absolute gains (a :class:`DriftSchedule` of schema 1, or bare rows), ``(g_ż, g_z,
+    True)`` per unit k_θ; None without a schedule."""
+    if schedule is None:
         return None
-    t, kzd, kz = (np.array(c, dtype=float) for c in zip(*rows))
-    return float(np.interp(t_s, t, kzd)), float(np.interp(t_s, t, kz))
+    rows = schedule.rows if isinstance(schedule, DriftSchedule) else schedule
+    t, a, b = (np.array(c, dtype=float) for c in zip(*rows))
+    pin = (float(np.interp(t_s, t, a)), float(np.interp(t_s, t, b)))
+    return pin + (True,) if getattr(schedule, "per_k_theta", False) else pin
 
 
 def pin_drift(x, pin) -> np.ndarray:
-    """``x`` (a copy) with its drift gains set to ``pin`` = (k_ż, k_z); unchanged when None."""
+    """``x`` (a copy) with its drift gains set to ``pin``: ``(k_ż, k_z)``, or ``(g_ż, g_z,
+    True)`` for k_ż = g_ż·k_θ, k_z = g_z·k_θ at ``x``'s own k_θ, clipped to their search box;
+    unchanged when None."""
     x = np.array(x, dtype=float)
     if pin is not None:
-        x[list(PINNED_INDICES)] = pin
+        idx = list(PINNED_INDICES)
+        if len(pin) == 3 and pin[2]:
+            x[idx] = np.clip(np.array(pin[:2]) * 10.0 ** x[0], LOWER[idx], UPPER[idx])
+        else:
+            x[idx] = pin[:2]
     return x
 
 RELIEF_PARAMETERS = (
@@ -600,8 +641,8 @@ def evaluate_discrete(K, ds: DesignSet, detail: bool = False):
 def tune_point(ds: DesignSet, x0=None, seed: int = 0, maxiter: int = 60,
                popsize: int = 12, polish_maxfev: int = 1500, pin=None):
     """Tune one flight time: differential evolution (seeded, from ``x0`` in its initial
-    population when given), then Nelder–Mead polish; with ``pin`` = (k_ż, k_z) the drift gains
-    held there (:func:`drift_gains_at`). Returns (x, cost, detail)."""
+    population when given), then Nelder–Mead polish; with ``pin`` (:func:`drift_gains_at`) the
+    drift gains held there (:func:`pin_drift`). Returns (x, cost, detail)."""
     x = _search(evaluate, (ds,), x0, seed, maxiter, popsize, polish_maxfev, pin=pin)
     cost, detail = evaluate(x, ds, detail=True)
     return x, cost, detail
@@ -610,8 +651,8 @@ def tune_point(ds: DesignSet, x0=None, seed: int = 0, maxiter: int = 60,
 def _search(fun, args, x0, seed, maxiter, popsize, polish_maxfev, callback=None, pin=None):
     """Differential evolution over the parameter box (``x0`` and a cloud around it in the
     initial population when given), then a Nelder–Mead polish; the better point, clipped.
-    With ``pin`` = (k_ż, k_z) the two drift gains are held there and the others searched
-    (:data:`DRIFT_GAINS_PATH`)."""
+    With ``pin`` (:func:`drift_gains_at`) the two drift gains are held at it (absolute, or per
+    unit k_θ of each candidate) and the others searched (:data:`DRIFT_GAINS_PATH`)."""
     n_x = len(PARAMETERS) if x0 is None else np.asarray(x0).size
     if pin is not None:
         base = pin_drift(np.zeros(n_x) if x0 is None else x0, pin)
@@ -620,7 +661,7 @@ def _search(fun, args, x0, seed, maxiter, popsize, polish_maxfev, callback=None,
         def expand(y):
             x = base.copy()
             x[free] = y
-            return x
+            return pin_drift(x, pin)         # per unit k_θ: the drift gains follow x[0]
 
         def reduced(y, *a):
             return fun(expand(y), *a)
@@ -952,11 +993,12 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
     finished in an earlier, interrupted run of the same code and arguments are reused, not run
     again: the result is the uninterrupted run's.
 
-    With ``drift_gains`` (rows ``(t_s, k_ż, k_z)``, :func:`load_drift_gains`: what `vega
-    design` passes by default) every tuning of steps 1–5 holds the two drift gains at the
-    schedule (:func:`drift_gains_at`) and tunes the twelve other parameters; step 6 scales k_ż
-    after. Without, the drift gains are tuned with the rest (the tables made before
-    2026-11-27, eighth session).
+    With ``drift_gains`` (a :class:`DriftSchedule`, :func:`load_drift_gains`: what `vega
+    design` passes by default; or bare rows ``(t_s, k_ż, k_z)``) every tuning of steps 1–5
+    holds the two drift gains at the schedule (:func:`drift_gains_at`; per unit k_θ since
+    2026-12-02) and tunes the twelve other parameters; step 6 scales k_ż after. Without,
+    the drift gains are tuned with the rest (the tables made before 2026-11-27, eighth
+    session).
     """
     from vega_model.uncertainty import UncertaintySet
 
@@ -1056,7 +1098,9 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
                              "drift": {"factor": drift_scale, "from_s": DRIFT_SCALE_FROM_S,
                                        "worst_case_checked": drift_worst_case is not None},
                              "drift_gains": ("tuned" if drift_gains is None else
-                                             {"scheduled": True, "rows": len(drift_gains)}),
+                                             {"scheduled": True, "rows": len(drift_gains),
+                                              "per_k_theta": bool(getattr(
+                                                  drift_gains, "per_k_theta", False))}),
                              "how": {f"{t:g}": done[float(t)][2] for t in grid_t}})
 
 
