@@ -27,6 +27,8 @@ import verify_table as V  # noqa: E402
     ([str(SHIPPED), "--out", "{d}/o", "--scenarios", "nominal,nope"], "--scenarios nope:"),
     ([str(SHIPPED), "--out", "{d}/o", "--runs", "0"], "--runs 0: must be within"),
     ([str(SHIPPED), "--out", "{d}/full"], "--out {d}/full: exists and is not an empty"),
+    ([str(SHIPPED), "--out", "{d}/o", "--heldout-reference", "{d}/full"],
+     "--heldout-reference {d}/full: no campaign.json (not a `vega mc run` campaign)"),
 ])
 def test_bad_input_is_one_line_and_exit_2_before_anything_runs(tmp_path, capsys, args,
                                                                message):
@@ -121,3 +123,29 @@ def test_a_table_changed_while_the_checks_run_is_not_signed_off(tmp_path, monkey
     assert report["signed_off"] is False and report["table_sha256"] == read
     assert report["checks"][0]["passed"]
     assert "changed while the checks ran: not signed off" in capsys.readouterr().out
+
+
+def test_a_held_out_seed_is_flown_on_the_reference_samples_and_reported(tmp_path, capsys):
+    """A two-flight campaign of the shipped table on seed 5 is the held-out reference; the
+    verification flies the table on its samples and compares them flight by flight: the same
+    table, so nothing lost or won. Reported, never gated, and outside the checks' scope."""
+    from vega_cli import cli
+
+    ref = tmp_path / "ref"
+    assert cli.main(["mc", "run", "--runs", "2", "--seed", "5", "--workers", "1",
+                     "--table", str(SHIPPED), "--out", str(ref)]) in (0, 1)
+    flown = json.loads((ref / "summary.json").read_text())
+    out = tmp_path / "v"
+    code = V.main([str(SHIPPED), "--out", str(out), "--checks", "mc", "--runs", "2",
+                   "--workers", "1", "--heldout-reference", str(ref)])
+    report = json.loads((out / "verify.json").read_text())
+    mc, held = report["checks"]
+    assert code == (0 if mc["passed"] else 1) and report["signed_off"] is (code == 0)
+    assert report["scope"]["checks"] == ["mc"]
+    assert report["scope"]["heldout_reference"] == str(ref)
+    assert held["check"] == "mc held-out seed 5" and held["gated"] is False
+    f = held["figures"]
+    assert (f["seed"], f["runs"], f["lost"], f["won"]) == (5, 2, [], [])
+    assert f["reference_passed"] == f["passed"] == flown["passed"] and held["passed"]
+    assert (out / "mc_heldout_compare.png").stat().st_size > 10_000
+    assert "mc held-out seed 5: reported: pass" in capsys.readouterr().out

@@ -18,6 +18,12 @@ Checks (each the repository's own command, run as a subprocess, its output kept 
   drift failures reported (and compared with ``--mc-reference PASSED`` when given: a design
   that passes fewer flights than the shipped one is reported as such, and gated).
 
+With ``--heldout-reference DIR`` (a complete campaign of the reference table on another seed,
+docs/FLIGHT_DESIGN.md §6.5 "A held-out seed"), one more campaign flies TABLE on the samples of
+DIR (its scenario, dispersions, seed and number of flights) and is compared with it flight by
+flight (``compare_campaigns.py``: passes, flights lost and won, McNemar's exact p); reported,
+not gated, and not part of the sign-off's scope of checks.
+
 Writes OUT/verify.json (the table's path and SHA-256, the scope of the checks — which checks,
 scenarios, frozen times, flights and reference —, per check: command, exit status, wall time,
 figures, verdict) and prints one line per check; ``tools/design/ship_table.py OUT`` ships a
@@ -27,7 +33,7 @@ not a sign-off of any bytes), 2 on bad input (one line, before anything runs).
 
 Usage: .venv/bin/vega-env python tools/design/verify_table.py TABLE --out DIR
        [--checks sil,margins,robust,mc] [--scenarios A,B] [--runs 852] [--mc-reference 746]
-       [--workers 2] [--at 0:100:0.5]
+       [--workers 2] [--at 0:100:0.5] [--heldout-reference CAMPAIGN_DIR]
 """
 
 from __future__ import annotations
@@ -152,6 +158,41 @@ def check_mc(table, out: Path, runs: int, workers: int, reference: int | None) -
              "gated": True, "passed": passed, "figures": figures}]
 
 
+def check_heldout(table, out: Path, workers: int, reference: Path) -> list[dict]:
+    """TABLE flown on the samples of the campaign ``reference`` and compared with it flight by
+    flight; reported, not gated."""
+    from compare_campaigns import SAME_INPUTS, compare, load_campaign, plot
+
+    ref_inputs, ref = load_campaign(reference)
+    inputs_dir = out / "heldout_inputs"
+    inputs_dir.mkdir()
+    scenario = inputs_dir / f"{ref_inputs['scenario']}.yaml"     # a scenario file is named
+    scenario.write_text(ref_inputs["scenario_yaml"])                 # after its scenario
+    (inputs_dir / "dispersions.yaml").write_text(ref_inputs["dispersions_yaml"])
+    seed, runs = str(ref_inputs["seed"]), str(ref_inputs["runs"])
+    code, wall = _vega(["mc", "run", "--runs", runs, "--seed", seed, "--table", str(table),
+                        "--scenario", str(scenario),
+                        "--dispersions", str(inputs_dir / "dispersions.yaml"),
+                        "--out", str(out / "mc_heldout"), "--workers", str(workers)],
+                       out / "mc_heldout.log")
+    figures, passed = {"log": "mc_heldout.log", "reference": str(reference)}, False
+    if (out / "mc_heldout" / "results.parquet").exists():
+        inputs, got = load_campaign(out / "mc_heldout")
+        differ = [k for k in SAME_INPUTS if inputs.get(k) != ref_inputs.get(k)]
+        if differ:      # the same inputs were passed: a defect, not bad input
+            raise RuntimeError(f"held-out campaign differs from {reference} in {differ}")
+        report = compare(ref, got)
+        plot(ref, got, report, out / "mc_heldout_compare.png", ("reference", "table"))
+        figures.update({"seed": int(seed), "runs": report["runs"],
+                        "reference_passed": report["passed_a"], "passed": report["passed_b"],
+                        "lost": [f["sample"] for f in report["lost"]],
+                        "won": [f["sample"] for f in report["won"]],
+                        "mcnemar_exact_p": round(report["mcnemar_exact_p"], 4)})
+        passed = report["passed_b"] >= report["passed_a"]
+    return [{"check": f"mc held-out seed {seed}", "exit": code, "wall_s": round(wall, 1),
+             "gated": False, "passed": passed, "figures": figures}]
+
+
 def sha256_of(path: Path) -> str:
     """The SHA-256 of the file at ``path`` (hex): ties a sign-off record to the table's bytes,
     so `ship_table.py` can refuse a table changed after it was verified."""
@@ -170,6 +211,8 @@ def parse(argv):
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--at", default="0:100:0.5",
                    help="frozen times of margins and robust (default 0:100:0.5, the flight)")
+    p.add_argument("--heldout-reference", type=Path, default=None,
+                   help="a campaign of the reference table on a held-out seed (reported)")
     return p.parse_args(argv)
 
 
@@ -201,6 +244,13 @@ def validate(args) -> tuple[Path, Path, list[str], list[str]]:
         raise BadInput(f"--runs {args.runs}: must be within 1..100000")
     if not 1 <= args.workers <= 64:
         raise BadInput(f"--workers {args.workers}: must be within 1..64")
+    if args.heldout_reference is not None:
+        from compare_campaigns import load_campaign
+
+        try:
+            load_campaign(args.heldout_reference)
+        except BadInput as exc:
+            raise BadInput(f"--heldout-reference {exc}") from None
     return table.resolve(), out, checks, scenarios
 
 
@@ -232,12 +282,22 @@ def main(argv=None) -> int:
             print(f"  {r['check']}: {verdict} (exit {r['exit']}, {r['wall_s']:.0f} s)"
                   + (f" {json.dumps(shown)}" if shown else ""), flush=True)
         results.extend(got)
+    if args.heldout_reference is not None:
+        print("verify_table: held-out seed …", flush=True)
+        got = check_heldout(table, out, args.workers, args.heldout_reference)
+        for r in got:
+            shown = {k: v for k, v in r["figures"].items() if k not in ("log", "reference")}
+            print(f"  {r['check']}: reported: {'pass' if r['passed'] else 'fail'} "
+                  f"(exit {r['exit']}, {r['wall_s']:.0f} s) {json.dumps(shown)}", flush=True)
+        results.extend(got)
     changed = sha256_of(table) != digest
     ok = all(r["passed"] for r in results if r["gated"]) and not changed
     (out / "verify.json").write_text(json.dumps(
         {"table": str(table), "table_sha256": digest,
          "scope": {"checks": checks, "scenarios": scenarios, "at": args.at, "runs": args.runs,
-                   "mc_reference": args.mc_reference},
+                   "mc_reference": args.mc_reference,
+                   **({"heldout_reference": str(args.heldout_reference)}
+                      if args.heldout_reference is not None else {})},
          "finished_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
          "checks": results, "signed_off": ok}, indent=1) + "\n")
     verdict = ("every gated check passed" if ok else
