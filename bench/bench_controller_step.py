@@ -1,8 +1,9 @@
 """Benchmark: on-board controller step time (vega_gnc ControllerRuntime), median and p99.
 
-Usage: .venv/bin/vega-env python bench/bench_controller_step.py [TABLE.npz]
-Default table: the shipped ros2_ws/src/vega_gnc/config/lpv_controller.npz if present, else a
-synthetic 19-state, 9-point table of the same shape (stated in the output).
+Usage: .venv/bin/vega-env python bench/bench_controller_step.py [TABLE.npz ...]
+Default tables: the flown structured table (ros2_ws/src/vega_gnc/config/tvc_controller.npz)
+and the shipped LPV table (lpv_controller.npz), each if present; without either, a synthetic
+19-state, 9-point table of the LPV table's shape (stated in the output).
 """
 
 import sys
@@ -17,7 +18,8 @@ from vega_gnc.controller_runtime import ControllerRuntime, Measurement
 from vega_gnc.controller_table import load_controller_table
 from vega_gnc.guidance_reference import load_guidance_reference
 
-SHIPPED = Path(__file__).resolve().parent.parent / "ros2_ws/src/vega_gnc/config/lpv_controller.npz"
+CONFIG = Path(__file__).resolve().parent.parent / "ros2_ws/src/vega_gnc/config"
+DEFAULT_TABLES = (CONFIG / "tvc_controller.npz", CONFIG / "lpv_controller.npz")
 NAMES = ["theta_ins_rad", "theta_dot_ins_radps", "z_ins_m", "z_dot_ins_mps"]
 
 
@@ -49,17 +51,20 @@ def _time_steps(runtime, table, n: int = 50_000) -> np.ndarray:
 
 
 def main():
-    path = sys.argv[1] if len(sys.argv) > 1 else (SHIPPED if SHIPPED.exists() else None)
-    table = load_controller_table(path) if path else _synthetic_table()
-    print(f"table: {table.path} ({table.n_states} states, {table.grid_v_mps.size} grid points)")
-    cases = [("no guidance reference", None)]
-    reference = SHIPPED.with_name("guidance_reference.npz")
-    if reference.exists():
-        cases.append(("shipped guidance reference", load_guidance_reference(reference)))
-    for label, ref in cases:
-        us = _time_steps(ControllerRuntime(table, reference=ref), table)
-        print(f"controller step, {label}: median {np.median(us):.1f} us, "
-              f"p99 {np.percentile(us, 99):.1f} us, max {us.max():.1f} us over {us.size} steps")
+    paths = sys.argv[1:] or [p for p in DEFAULT_TABLES if p.exists()]
+    tables = [load_controller_table(p) for p in paths] or [_synthetic_table()]
+    reference = CONFIG / "guidance_reference.npz"
+    for table in tables:
+        print(f"table: {table.path} ({table.n_states} states, {table.grid_v_mps.size} grid "
+              "points)")
+        cases = [("no guidance reference", None)]
+        if reference.exists():
+            cases.append(("shipped guidance reference", load_guidance_reference(reference)))
+        for label, ref in cases:
+            us = _time_steps(ControllerRuntime(table, reference=ref), table)
+            print(f"controller step, {label}: median {np.median(us):.1f} us, "
+                  f"p99 {np.percentile(us, 99):.1f} us, max {us.max():.1f} us over {us.size} "
+                  "steps")
 
 
 if __name__ == "__main__":
