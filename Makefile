@@ -150,7 +150,7 @@ soak: setup
 # Sign-off checks of a controller table (tools/design/verify_table.py): the SIL verdict
 # scenarios, `vega margins --dispersed`, `vega robust --no-mu`, an 852-flight campaign; exit 0
 # when every gated check passes. TABLE (default: the shipped table), VERIFY_ARGS appended,
-# e.g. VERIFY_ARGS="--mc-reference 746"; 19.5 min on 2 quiet cores (2026-11-27)
+# e.g. VERIFY_ARGS="--mc-reference 757" (the flown table's own sign-off passes); 19.5 min on 2 quiet cores (2026-11-27)
 TABLE ?= $(WS)/src/vega_gnc/config/tvc_controller.npz
 .PHONY: verify-design
 verify-design: setup
