@@ -1,6 +1,6 @@
 # VEGA TVC flight software: workspace set-up, tests and software-in-the-loop runs.
 #
-#   make setup   .venv from requirements.txt, colcon build of ros2_ws, offline_synthesis, `vega`
+#   make setup   .venv from requirements.txt, colcon build of ros2_ws, offline/ and cli/, `vega`
 #   make lint    ruff (lint, docstrings) and the package layering contracts (pyproject.toml)
 #   make test    `make lint`, then the whole pytest suite (sets up first)
 #   make sil     fly the default SIL scenario into bags/ (sets up first; SIL_ARGS=...)
@@ -32,7 +32,7 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 unexport ROS_LOCALHOST_ONLY ROS_STATIC_PEERS
 
 REQUIREMENTS_STAMP := $(VENV)/.stamp-requirements
-OFFLINE_STAMP := $(VENV)/.stamp-offline-synthesis
+OFFLINE_STAMP := $(VENV)/.stamp-offline
 WS_STAMP := $(WS)/install/.stamp-build
 KERNELS_STAMP := $(WS)/install/.stamp-kernels
 BUILD_LOG := $(WS)/log/make-colcon-build.log
@@ -81,12 +81,11 @@ $(KERNELS_STAMP): $(WS_STAMP) $(KERNEL_SOURCES) | $(WRAPPERS)
 	@$(VENV)/bin/vega-env python -m vega_model.kernels
 	@touch $@
 
-# (re-installed once offline_synthesis/__init__.py appears: the editable finder then maps a
-# regular package instead of a namespace package)
-$(OFFLINE_STAMP): $(ROOT)/offline_synthesis/pyproject.toml $(REQUIREMENTS_STAMP) \
-  $(wildcard $(ROOT)/offline_synthesis/offline_synthesis/__init__.py)
+# The offline side (offline/: vega_loops ... vega_design) and the command line (cli/: vega_cli),
+# editable: edits take effect without a reinstall; a new package needs its pyproject entry.
+$(OFFLINE_STAMP): $(ROOT)/offline/pyproject.toml $(ROOT)/cli/pyproject.toml $(REQUIREMENTS_STAMP)
 	$(VENV)/bin/python -m pip install --disable-pip-version-check --quiet \
-	  --no-deps --no-build-isolation --editable $(ROOT)/offline_synthesis
+	  --no-deps --no-build-isolation --editable $(ROOT)/offline --editable $(ROOT)/cli
 	touch $@
 
 # Small wrappers that set up the whole environment (tools/env.bash) from any directory, without
@@ -108,12 +107,10 @@ $(VENV)/bin/vega-env: $(ROOT)/Makefile | $(VENV)/bin/python
 	  'exec "$$VIRTUAL_ENV/bin/python" -m vega_bringup.rosenv "$$@"' > $@
 	@chmod +x $@
 
-# The layering contracts run from $(WS): lint-imports puts its working directory first on
-# sys.path, and from the repository root the project directory offline_synthesis/ would shadow
-# the installed package offline_synthesis (the contracts would check nothing of it).
+# ruff (lint, docstrings) and the layering contracts of pyproject.toml (import-linter).
 lint: setup
-	cd $(ROOT) && $(VENV)/bin/ruff check ros2_ws/src offline_synthesis tests bench tools
-	cd $(WS) && $(VENV)/bin/vega-env lint-imports --no-logo --no-cache $(ROOT)/pyproject.toml
+	cd $(ROOT) && $(VENV)/bin/ruff check ros2_ws/src offline cli tests bench tools
+	cd $(ROOT) && $(VENV)/bin/vega-env lint-imports --no-logo --no-cache $(ROOT)/pyproject.toml
 
 test: setup lint
 	cd $(ROOT) && $(VENV)/bin/vega-env python -m pytest tests $(PYTEST_ARGS)
@@ -159,7 +156,8 @@ verify-design: setup
 
 clean:
 	rm -rf $(WS)/build $(WS)/install $(WS)/log $(ROOT)/.pytest_cache $(ROOT)/.ruff_cache
-	rm -rf $(ROOT)/offline_synthesis/*.egg-info $(ROOT)/offline_synthesis/build $(OFFLINE_STAMP)
+	rm -rf $(ROOT)/offline/*.egg-info $(ROOT)/offline/build $(ROOT)/cli/*.egg-info $(ROOT)/cli/build \
+	  $(OFFLINE_STAMP)
 	find $(ROOT) -name .venv -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
 
 distclean: clean

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from offline_synthesis.export import write_controller_table
+from vega_loops.export import write_controller_table
 from vega_gnc.controller_runtime import ControllerRuntime, Measurement
 from vega_gnc.controller_table import load_controller_table
 from vega_gnc.guidance_reference import load_guidance_reference

@@ -15,7 +15,7 @@ One run measures, in this order (issue 12 item 5):
    * ``nominal`` 0–100 s (nonlinear plant, shipped table and reference), warm (the parameter
      track cached): simulated seconds per CPU second of the process (× real time per core) and
      per wall second; best of 3;
-   * Monte Carlo flights as ``vega mc run`` flies them (``offline_synthesis.campaign.
+   * Monte Carlo flights as ``vega mc run`` flies them (``vega_campaign.campaign.
      fly_sample``: sample, fly, metrics; every flight builds its own parameter track): mean CPU
      and wall seconds per 100 s flight over ``--samples`` samples (default 4) after one warm-up;
    * the plant node's start-up: a fresh process importing the plant factory, building the
@@ -54,7 +54,7 @@ _RATE = re.compile(r"mc: \d+/\d+ done, .*?, (?P<rate>[\d.]+) flights/s")
 def _measure(samples: int) -> dict:
     """Run in a fresh process: the figures of the code on PYTHONPATH (one JSON line)."""
     import vega_sim
-    from offline_synthesis.campaign import default_dispersions_path, fly_sample
+    from vega_campaign.campaign import default_dispersions_path, fly_sample
     from vega_gnc.controller_table import default_table_path, load_controller_table
     from vega_sim.closed_loop import run_scenario
     from vega_sim.scenario import dump_scenario, load_scenario
@@ -105,10 +105,12 @@ def _old_rev() -> str:
 
 
 def _pythonpath(tree: Path) -> str:
-    """The old tree's ROS packages and offline_synthesis, ahead of the workspace's."""
+    """The old tree's ROS packages and offline packages (offline_synthesis/ before the split,
+    offline/ and cli/ after it), ahead of the workspace's."""
     dirs = [str(p.parent.parent) for p in sorted((tree / "ros2_ws/src").glob("*/*/__init__.py"))
             if p.parent.name == p.parent.parent.name]
-    dirs.append(str(tree / "offline_synthesis"))
+    dirs += [str(tree / base) for base in ("offline_synthesis", "offline", "cli")
+             if (tree / base).is_dir()]
     return os.pathsep.join(dirs + [os.environ.get("PYTHONPATH", "")])
 
 

@@ -17,8 +17,8 @@ from pathlib import Path
 def main():
     import dataclasses
 
-    from offline_synthesis.campaign import load_dispersions
-    from offline_synthesis.campaign_run import run_campaign
+    from vega_campaign.campaign import load_dispersions
+    from vega_campaign.campaign_run import run_campaign
     from vega_gnc.controller_table import default_table_path
     from vega_sim.scenario import load_scenario
 

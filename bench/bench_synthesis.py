@@ -32,10 +32,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from offline_synthesis.lpv_synthesis import synthesize
-from offline_synthesis.pipeline import (SOLVER_PATHS, grid_times, gridded_plant,
+from vega_lpv.lpv_synthesis import synthesize
+from vega_lpv.pipeline import (SOLVER_PATHS, grid_times, gridded_plant,
                                         rate_bounds_from_trajectory, rate_box, run_synthesis)
-from offline_synthesis.weights import SHIPPED
+from vega_lpv.weights import SHIPPED
 from vega_model.parameters import default_context
 
 

@@ -5,7 +5,7 @@
   β = K_p(θ − θ_ref) + K_d θ̇ with K_p = (ω² + a)/b, K_d = 2ζω/b (ω = 2.5 rad/s, ζ = 0.7) and
   a slow drift loop θ_ref = −(ω_z² z + 2ζ_z ω_z ż)/g (ω_z = 0.15 rad/s, ζ_z = 0.8), rolled off
   by a second-order low-pass at 10 rad/s (bending mode 1 is at 30–37 rad/s), exported
-  through :func:`offline_synthesis.export.write_controller_table` like the real table.
+  through :func:`vega_loops.export.write_controller_table` like the real table.
 * :func:`write_gain_table` — a static gain β_cmd = 0.5·θ_INS (a first-order state that never
   feeds the output), for latency tests.
 
@@ -40,7 +40,7 @@ _META = {"input_names": _NAMES, "measurement_sign": 1, "output_name": "beta_cmd_
 
 
 def _export(path, grid, A, B, C, D) -> "ControllerTable":
-    from offline_synthesis.export import write_controller_table
+    from vega_loops.export import write_controller_table
 
     return write_controller_table(path, grid, np.array(A), np.array(B), np.array(C),
                                   np.array(D), dt_s=0.02, gamma=1.0, gamma_min=1.0,

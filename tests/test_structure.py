@@ -9,7 +9,8 @@ the copy first on the path.
 Independently of import-linter, the package-level import graph (every ``import`` statement,
 module-level or inside a function) is read from the sources here: it must have no cycle, and
 every package must declare what it imports (package.xml ``<exec_depend>`` for the workspace
-and ROS packages, offline_synthesis/pyproject.toml ``dependencies`` for offline_synthesis).
+and ROS packages, the ``dependencies`` of offline/pyproject.toml and cli/pyproject.toml for the
+offline side and the command line).
 """
 
 import ast
@@ -29,20 +30,28 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 WS = ROOT / "ros2_ws"
 PYPROJECT = ROOT / "pyproject.toml"
-OFFLINE = ROOT / "offline_synthesis"
+OFFLINE = ROOT / "offline"
+CLI = ROOT / "cli"
 
 IMPORTLINTER = tomllib.loads(PYPROJECT.read_text(encoding="utf-8"))["tool"]["importlinter"]
 ROOT_PACKAGES = IMPORTLINTER["root_packages"]
 CONTRACTS = {c["id"]: c for c in IMPORTLINTER["contracts"]}
 
-# offline_synthesis dependencies used without an import statement
+# offline dependencies used without an import statement
 RUNTIME_ONLY = {"clarabel"}  # cvxpy's solver, chosen by name (lpv_synthesis.py)
 
 
 def _source_dir(package: str) -> Path:
     """Directory of the Python package ``package`` in this repository."""
     ament = WS / "src" / package / package
-    return ament if ament.is_dir() else OFFLINE / package
+    if ament.is_dir():
+        return ament
+    return CLI / package if (CLI / package).is_dir() else OFFLINE / package
+
+
+def _pip_packages(project: Path) -> list[str]:
+    """The Python packages of the pip project in ``project`` (offline/ or cli/)."""
+    return sorted(p.parent.name for p in project.glob("*/__init__.py"))
 
 
 def _ament_python_packages() -> list[str]:
@@ -137,9 +146,8 @@ def _tool(name: str) -> str:
 
 
 def _lint_imports(*contracts: str, first_on_path: Path | None = None):
-    """Run lint-imports as ``make lint`` does (from ros2_ws: from the repository root the
-    project directory offline_synthesis/ would shadow the package), optionally with
-    ``first_on_path`` first on PYTHONPATH and only the given contracts."""
+    """Run lint-imports as ``make lint`` does, optionally with ``first_on_path`` first on
+    PYTHONPATH and only the given contracts."""
     env = dict(os.environ)
     if first_on_path is not None:
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(first_on_path),
@@ -147,13 +155,13 @@ def _lint_imports(*contracts: str, first_on_path: Path | None = None):
     command = [_tool("lint-imports"), "--no-logo", "--no-cache", str(PYPROJECT)]
     for contract in contracts:
         command += ["--contract", contract]
-    return subprocess.run(command, cwd=WS, env=env, capture_output=True, text=True,
+    return subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True,
                           timeout=300, check=False)
 
 
 # ------------------------------------------------------------------------- the contracts
 def test_the_contracts_cover_every_python_package():
-    offline = {p.parent.name for p in OFFLINE.glob("*/__init__.py")}
+    offline = set(_pip_packages(OFFLINE)) | set(_pip_packages(CLI))
     packages = set(_ament_python_packages()) | offline
     assert set(ROOT_PACKAGES) == packages
     layered = {name.strip() for layer in CONTRACTS["layers"]["layers"]
@@ -168,7 +176,7 @@ def test_the_contracts_see_every_module():
               "g = grimp.build_graph(*sys.argv[1:], include_external_packages=True, "
               "cache_dir=None)\n"
               "print(json.dumps(sorted(g.modules)))\n")
-    result = subprocess.run([sys.executable, "-c", script, *ROOT_PACKAGES], cwd=WS,
+    result = subprocess.run([sys.executable, "-c", script, *ROOT_PACKAGES], cwd=ROOT,
                             capture_output=True, text=True, timeout=300, check=False)
     assert result.returncode == 0, result.stderr
     in_graph = {m for m in json.loads(result.stdout) if m.split(".")[0] in ROOT_PACKAGES}
@@ -189,13 +197,33 @@ VIOLATIONS = [
                  "\n\ndef _injected():\n    import vega_model.actuator\n",
                  "flight-side", "vega_gnc.controller_runtime -> vega_model.actuator",
                  id="flight-side-imports-the-truth-side"),
-    pytest.param("offline_synthesis", "trajectory.py", "\nimport rclpy\n",
-                 "offline-synthesis", "offline_synthesis.trajectory -> rclpy",
-                 id="offline-synthesis-imports-rclpy"),
-    pytest.param("offline_synthesis", "export.py",
+    pytest.param("vega_reference", "trajectory.py", "\nimport rclpy\n",
+                 "offline", "vega_reference.trajectory -> rclpy",
+                 id="offline-imports-rclpy"),
+    pytest.param("vega_loops", "export.py",
                  "\n\ndef _injected():\n    from vega_cli import cli\n",
-                 "offline-synthesis", "offline_synthesis.export -> vega_cli.cli",
-                 id="offline-synthesis-imports-the-cli"),
+                 "offline", "vega_loops.export -> vega_cli.cli",
+                 id="offline-imports-the-cli"),
+    pytest.param("vega_analysis", "robust.py",
+                 "\n\ndef _injected():\n    from vega_design import structured\n",
+                 "layers", "vega_analysis.robust -> vega_design.structured",
+                 id="analysis-imports-the-design-upward"),
+    pytest.param("vega_loops", "margins.py",
+                 "\n\ndef _injected():\n    from vega_campaign import campaign\n",
+                 "layers", "vega_loops.margins -> vega_campaign.campaign",
+                 id="loops-import-the-campaign-upward"),
+    pytest.param("vega_campaign", "campaign.py",
+                 "\n\ndef _injected():\n    from vega_analysis import robust\n",
+                 "layers", "vega_campaign.campaign -> vega_analysis.robust",
+                 id="campaign-imports-the-analysis-upward"),
+    pytest.param("vega_lpv", "pipeline.py",
+                 "\n\ndef _injected():\n    from vega_design import structured\n",
+                 "offline-independence", "vega_lpv.pipeline -> vega_design.structured",
+                 id="lpv-imports-the-design"),
+    pytest.param("vega_sim", "closed_loop.py",
+                 "\n\ndef _injected():\n    from vega_loops import margins\n",
+                 "layers", "vega_sim.closed_loop -> vega_loops.margins",
+                 id="workspace-imports-the-offline-side-upward"),
     pytest.param("vega_model", "wind.py",
                  "\n\ndef _injected():\n    from vega_sim import scenario\n",
                  "layers", "vega_model.wind -> vega_sim.scenario",
@@ -264,7 +292,7 @@ def test_package_xml_declares_what_the_package_imports(package):
     xml = ET.parse(WS / "src" / package / "package.xml").getroot()
     declared = {e.text.strip() for e in xml if e.tag in ("depend", "exec_depend")}
     own = {p.name for p in (WS / "src").iterdir() if (p / "package.xml").exists()}
-    wanted = own | {"offline_synthesis"} | _ros_packages()
+    wanted = own | set(ROOT_PACKAGES) | _ros_packages()
     imports = _package_imports(_source_dir(package), package)
     missing = {name: where for name, where in imports.items()
                if name in wanted and name not in declared}
@@ -276,16 +304,26 @@ def _distribution(name: str) -> str:
     return re.sub(r"[-_.]+", "-", name).lower()
 
 
-def test_offline_synthesis_declares_what_it_imports():
-    project = tomllib.loads((OFFLINE / "pyproject.toml").read_text(encoding="utf-8"))
+@pytest.mark.parametrize("project", [OFFLINE, CLI], ids=["offline", "cli"])
+def test_pip_projects_declare_what_they_import(project):
+    """offline/ and cli/: every third-party and workspace package their code imports is a
+    ``dependencies`` entry (the offline packages as the one distribution vega_offline), and
+    every entry is imported."""
+    meta = tomllib.loads((project / "pyproject.toml").read_text(encoding="utf-8"))
     declared = {_distribution(re.split(r"[\s;<>=!~\[(]", d, maxsplit=1)[0])
-                for d in project["project"]["dependencies"]}
-    imports = _package_imports(_source_dir("offline_synthesis"), "offline_synthesis")
+                for d in meta["project"]["dependencies"]}
+    own = set(_pip_packages(project))
+    offline = set(_pip_packages(OFFLINE))
+    imports: dict[str, list[str]] = {}
+    for package in own:
+        for name, where in _package_imports(_source_dir(package), package).items():
+            if name not in own:
+                imports.setdefault("vega_offline" if name in offline else name, []).extend(where)
     third_party = {n: w for n, w in imports.items()
                    if n not in sys.stdlib_module_names and n != "__future__"}
     dists = importlib.metadata.packages_distributions()
     needed = {_distribution(dists.get(n, [n])[0]): w for n, w in third_party.items()}
     missing = {n: w for n, w in needed.items() if n not in declared}
-    assert not missing, f"offline_synthesis/pyproject.toml lacks dependencies {missing}"
+    assert not missing, f"{project.name}/pyproject.toml lacks dependencies {missing}"
     unused = declared - set(needed) - {_distribution(n) for n in RUNTIME_ONLY}
     assert not unused, f"declared but never imported: {sorted(unused)}"

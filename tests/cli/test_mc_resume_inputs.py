@@ -7,8 +7,8 @@ import json
 
 import pytest
 
-from offline_synthesis.campaign import load_dispersions
-from offline_synthesis.campaign_run import _inputs
+from vega_campaign.campaign import load_dispersions
+from vega_campaign.campaign_run import _inputs
 from vega_cli import cli
 from vega_cli.commands import mc
 from vega_gnc.controller_table import default_table_path

@@ -4,7 +4,7 @@ test: the CLI spells the choices out to stay fast to start)."""
 import subprocess
 import sys
 
-from offline_synthesis.pipeline import DEFAULT_SOLVER_PATH, SOLVER_PATHS
+from vega_lpv.pipeline import DEFAULT_SOLVER_PATH, SOLVER_PATHS
 from vega_cli.cli import build_parser
 
 

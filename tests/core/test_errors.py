@@ -34,8 +34,8 @@ def test_one_line(exc, text):
 def test_bad_input_is_a_value_error_and_the_loaders_errors_are_bad_input():
     """Old ``except ValueError`` keeps catching; every loader's own error class is bad input;
     a numerical failure of the synthesis is not (it is a defect path: traceback, exit 1)."""
-    from offline_synthesis.lpv_synthesis import SynthesisError
-    from offline_synthesis.trajectory import TrajectoryError
+    from vega_lpv.lpv_synthesis import SynthesisError
+    from vega_reference.trajectory import TrajectoryError
     from vega_bags.bagio import BagError
     from vega_bringup.rosenv import DomainIdError
     from vega_gnc.controller_table import ControllerTableError
@@ -165,7 +165,7 @@ def test_malformed_scenario_file_is_one_line_exit_2(tmp_path, capsys):
 def test_table_with_the_wrong_sample_time_is_one_line_exit_2(tmp_path, capsys):
     """A table that loads but does not fit the loop (10 ms instead of the 20 ms controller
     period): bad input, found by a check deep in the flight side (vega_bus.timing)."""
-    from offline_synthesis.export import write_controller_table
+    from vega_loops.export import write_controller_table
 
     path = tmp_path / "fast.npz"
     write_controller_table(path, [0.0, 3000.0], np.array([[[-1.0]]] * 2),

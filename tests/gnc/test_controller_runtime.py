@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from offline_synthesis.export import write_controller_table
+from vega_loops.export import write_controller_table
 from vega_gnc.controller_runtime import (STATUS_HOLD_LAST, STATUS_LIMITED, STATUS_OK,
                                          STATUS_SAFE_ZERO, STATUS_VELOCITY_CLAMPED,
                                          ControllerRuntime, Measurement, RuntimeLimits)

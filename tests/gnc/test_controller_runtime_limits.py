@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from fixture_tables import write_gain_table
-from offline_synthesis.export import write_controller_table
+from vega_loops.export import write_controller_table
 from vega_gnc.controller_runtime import (STATUS_HOLD_LAST, STATUS_LIMITED, STATUS_OK,
                                          STATUS_SAFE_ZERO, STATUS_VELOCITY_CLAMPED,
                                          ControllerRuntime, Measurement, RuntimeLimits)
@@ -258,7 +258,7 @@ def _finite_within_limits(cmds):
 @pytest.fixture(scope="module")
 def flight_table():
     """The committed LPV controller table (the one that flies)."""
-    from offline_synthesis.pipeline import DEFAULT_TABLE
+    from vega_lpv.pipeline import DEFAULT_TABLE
     from vega_gnc.controller_table import load_controller_table
 
     return load_controller_table(DEFAULT_TABLE)

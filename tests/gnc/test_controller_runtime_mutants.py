@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from fixture_tables import write_gain_table
-from offline_synthesis.export import write_controller_table
+from vega_loops.export import write_controller_table
 from vega_gnc.controller_runtime import (STATUS_HOLD_LAST, STATUS_OK, STATUS_SAFE_ZERO,
                                          ControllerRuntime, Measurement, RuntimeLimits)
 from vega_gnc.controller_table import MEASUREMENT_NAMES

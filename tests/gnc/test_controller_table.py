@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from offline_synthesis.export import write_controller_table
+from vega_loops.export import write_controller_table
 from vega_gnc.controller_table import (ControllerTableError, load_controller_table,
                                        validate_arrays)
 

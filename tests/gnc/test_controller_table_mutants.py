@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pytest
 
-from offline_synthesis.export import write_controller_table
+from vega_loops.export import write_controller_table
 from vega_gnc.config_files import read_npz
 from vega_gnc.controller_table import ControllerTableError, validate_arrays
 

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from scipy.stats import binomtest
 
-from offline_synthesis.campaign import (fly_sample, load_dispersions, parse_dispersions,
+from vega_campaign.campaign import (fly_sample, load_dispersions, parse_dispersions,
                                         sample_scenario)
-from offline_synthesis.campaign_run import clopper_pearson_lower, runs_needed
+from vega_campaign.campaign_run import clopper_pearson_lower, runs_needed
 from vega_core.errors import BadFile
 from vega_model.uncertainty import UNCERTAINTY_NAMES, UncertaintySet
 from vega_model.vehicle_data import load_vehicle_data

@@ -116,8 +116,8 @@ def test_killed_campaign_resumes_without_reflying(long_scenario, tmp_path):
     sample: under the soak's load (two suites on two cores) the client wrote all six in one
     burst before the kill came (soak round 2 of the sixth session). With 60 s flights the other
     five take ≈ 5 s of the worker's computing after the first is written."""
-    from offline_synthesis.campaign import fly_sample
-    from offline_synthesis.campaign_run import SAMPLES_DIR
+    from vega_campaign.campaign import fly_sample
+    from vega_campaign.campaign_run import SAMPLES_DIR
 
     out = tmp_path / "killed"
     proc = subprocess.Popen(_mc("--scenario", long_scenario, "--runs", RUNS, "--seed", 4,
@@ -193,8 +193,8 @@ def test_margins_campaign_is_the_margins_of_the_sampled_plants(tmp_path, capsys)
     """`vega mc margins`: each row holds the margins vega margins computes for the plant of that
     sample (its deviations as sample_scenario draws them), and the same rows on 1 and 2
     workers."""
-    from offline_synthesis import margins as mg
-    from offline_synthesis.campaign import load_dispersions, sample_scenario
+    from vega_loops import margins as mg
+    from vega_campaign.campaign import load_dispersions, sample_scenario
     from vega_gnc.controller_table import default_table_path, load_controller_table
     from vega_model.parameters import default_context
     from vega_sim.scenario import load_scenario

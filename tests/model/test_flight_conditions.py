@@ -14,7 +14,7 @@ from dataclasses import fields
 import numpy as np
 import pytest
 
-from offline_synthesis.trajectory import (AscentModel, TrajectoryError, simulate,
+from vega_reference.trajectory import (AscentModel, TrajectoryError, simulate,
                                           write_flight_conditions)
 from vega_model.flight_conditions import (COLUMNS, FlightCondition, FlightConditions,
                                           FlightConditionsError, default_flight_conditions_path)
@@ -74,7 +74,7 @@ def test_unwritable_output_is_a_one_line_error(tmp_path):
 def test_provenance_header_without_timestamp(fc):
     text = default_flight_conditions_path().read_text(encoding="utf-8")
     assert text.splitlines()[0] == "# vega_flight_conditions 1"
-    assert fc.provenance["generator"].startswith("offline_synthesis.trajectory")
+    assert fc.provenance["generator"].startswith("vega_reference.trajectory")
     assert len(fc.provenance["vehicle_yaml_sha256"]) == 64
     assert "regenerate" in fc.provenance
     assert not any(w in text.lower() for w in ("date", "time:", "utc", "generated at"))

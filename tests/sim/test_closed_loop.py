@@ -1,7 +1,7 @@
 """The in-process closed loop: timing, determinism, plants, wind and the per-node step classes.
 
 The controller here is the hand-designed scheduled PD of tests/fixture_tables.py (a test
-fixture, not the LPV synthesis), exported through offline_synthesis.export like the real
+fixture, not the LPV synthesis), exported through vega_loops.export like the real
 table.
 """
 
@@ -14,7 +14,7 @@ from scipy.linalg import expm
 from scipy.signal import cont2discrete
 
 from fixture_tables import write_gain_table, write_pd_table
-from offline_synthesis.weights import THESIS
+from vega_lpv.weights import THESIS
 from vega_gnc.controller_runtime import STATUS_OK
 from vega_model.dynamics import linear_model
 from vega_model.ins import InsParams

@@ -7,7 +7,7 @@ flies two of them.)"""
 import numpy as np
 import pytest
 
-from offline_synthesis.campaign import flight_metrics
+from vega_campaign.campaign import flight_metrics
 from vega_gnc.controller_table import default_table_path, load_controller_table
 from vega_sim.closed_loop import run_scenario
 from vega_sim.scenario import load_scenario

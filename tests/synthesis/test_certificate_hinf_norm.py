@@ -24,7 +24,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from offline_synthesis.certificate import hinf_norm
+from vega_lpv.certificate import hinf_norm
 
 REL = 1e-9
 

@@ -9,8 +9,8 @@ The small plant, controller and certificate are those of test_certificate_negati
 import numpy as np
 import pytest
 
-from offline_synthesis.certificate import certificate_check, closed_loop
-from offline_synthesis.gridded_plant import GriddedPlant, PlantDataError, PlantPoint
+from vega_lpv.certificate import certificate_check, closed_loop
+from vega_lpv.gridded_plant import GriddedPlant, PlantDataError, PlantPoint
 from test_certificate_negative import (STABILISING, FakeResult, _lft, _lyapunov, _plant, _point,
                                        _structured)
 

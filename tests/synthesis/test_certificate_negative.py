@@ -24,8 +24,8 @@ import numpy as np
 import pytest
 from scipy.linalg import solve_continuous_lyapunov
 
-from offline_synthesis.certificate import certificate_check
-from offline_synthesis.gridded_plant import PlantPoint
+from vega_lpv.certificate import certificate_check
+from vega_lpv.gridded_plant import PlantPoint
 
 GAMMA = 0.5
 T_BAL = np.array([[2.0, 0.3], [-0.4, 0.5]])       # x = T x_s (non-trivial balancing)
@@ -334,7 +334,7 @@ def _rotation(r, angle=0.3):
 
 @pytest.fixture
 def table_arrays(tmp_path):
-    from offline_synthesis.export import write_controller_table
+    from vega_loops.export import write_controller_table
 
     rng = np.random.default_rng(5)
     lead = (3, 2)

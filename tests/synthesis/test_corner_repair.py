@@ -1,4 +1,4 @@
-"""Step 7 of the structured design (offline_synthesis.corner_repair): the single-parameter
+"""Step 7 of the structured design (vega_design.corner_repair): the single-parameter
 repairs of the bending criterion at the dispersed corners.
 
 The real case: the shipped table records its hand edits (``solver.edits``); with the one at
@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from vega_model.parameters import default_context
 
-from offline_synthesis import corner_repair as R
-from offline_synthesis import structured as S
-from offline_synthesis.margins import REQUIREMENTS, bending_ok
+from vega_design import corner_repair as R
+from vega_design import structured as S
+from vega_loops.margins import REQUIREMENTS, bending_ok
 from fixture_tables import STRUCTURED_2026_11_27
 
 TABLE = STRUCTURED_2026_11_27     # the 43 s hand edit is in its tuning record

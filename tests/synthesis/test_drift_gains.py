@@ -1,4 +1,4 @@
-"""The drift-gain schedule of `vega design` (offline_synthesis.structured.DRIFT_GAINS_PATH): the
+"""The drift-gain schedule of `vega design` (vega_design.structured.DRIFT_GAINS_PATH): the
 tuning holds k_ż and k_z at it and tunes the twelve other parameters; since 2026-12-02 the
 schedule is per unit k_θ (k_ż = g_ż·k_θ, k_z = g_z·k_θ at the k_θ the tuning tries).
 
@@ -17,7 +17,7 @@ from vega_core.errors import BadFile
 from vega_model.parameters import default_context
 from vega_model.uncertainty import UncertaintySet
 
-from offline_synthesis import structured as S
+from vega_design import structured as S
 from fixture_tables import STRUCTURED_2026_11_27
 
 

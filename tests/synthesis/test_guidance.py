@@ -4,7 +4,7 @@ each checked against formulas written out here (docs/GUIDANCE.md), not the code'
 import numpy as np
 import pytest
 
-from offline_synthesis.guidance import DesignWind, GuidanceWeights, design_reference
+from vega_reference.guidance import DesignWind, GuidanceWeights, design_reference
 from vega_gnc.guidance_reference import default_reference_path, load_guidance_reference
 from vega_model.parameters import default_context
 from vega_model.wind import wind_profile_mps

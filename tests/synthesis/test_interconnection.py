@@ -6,12 +6,12 @@ import control
 import numpy as np
 import pytest
 
-from offline_synthesis.frozen_point import (balanced, frozen_point_gamma, optimal_gamma,
+from vega_lpv.frozen_point import (balanced, frozen_point_gamma, optimal_gamma,
                                             state_scaling)
-from offline_synthesis.interconnection import (GRID_TIMES_S, W_INPUTS, W_OUTPUTS, Y_NAMES,
+from vega_lpv.interconnection import (GRID_TIMES_S, W_INPUTS, W_OUTPUTS, Y_NAMES,
                                                GeneralizedPlant, plant_for_simulation, weight_ss,
                                                weighted_plant)
-from offline_synthesis.weights import SHIPPED, THESIS, WEIGHT_SETS, WeightSet
+from vega_lpv.weights import SHIPPED, THESIS, WEIGHT_SETS, WeightSet
 from vega_model.actuator import ActuatorParams, linear_actuator_ss
 from vega_model.delay import DelayParams
 from vega_model.dynamics import linear_model

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 import cvxpy  # noqa: F401 - pinned dependency: a broken install fails, never skips
 
-from offline_synthesis.certificate import certificate_check, closed_loop, hinf_norm
-from offline_synthesis.gridded_plant import GriddedPlant, PlantPoint
-from offline_synthesis.lpv_synthesis import synthesize
+from vega_lpv.certificate import certificate_check, closed_loop, hinf_norm
+from vega_lpv.gridded_plant import GriddedPlant, PlantPoint
+from vega_lpv.lpv_synthesis import synthesize
 
 RHO = np.linspace(1.0, 3.0, 5)
 RATES = (-0.5, 0.5)

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 import cvxpy  # noqa: F401 - pinned dependency: a broken install fails, never skips
 
-from offline_synthesis.certificate import closed_loop, hinf_norm
-from offline_synthesis.gridded_plant import GriddedPlant
-from offline_synthesis.lpv_synthesis import synthesize
+from vega_lpv.certificate import closed_loop, hinf_norm
+from vega_lpv.gridded_plant import GriddedPlant
+from vega_lpv.lpv_synthesis import synthesize
 
 s = control.tf("s")
 pytestmark = pytest.mark.filterwarnings("ignore:connect\\(\\) is deprecated:FutureWarning")  # augw

@@ -7,12 +7,12 @@ norm (SLICOT ab13dd, independent of the solver) is within 1 % of that γ.
 import numpy as np
 import pytest
 
-from offline_synthesis.certificate import closed_loop, hinf_norm
-from offline_synthesis.frozen_point import frozen_point_gamma
-from offline_synthesis.gridded_plant import GriddedPlant
-from offline_synthesis.interconnection import GRID_TIMES_S, weighted_plant
-from offline_synthesis.lpv_synthesis import synthesize
-from offline_synthesis.weights import WEIGHT_SETS
+from vega_lpv.certificate import closed_loop, hinf_norm
+from vega_lpv.frozen_point import frozen_point_gamma
+from vega_lpv.gridded_plant import GriddedPlant
+from vega_lpv.interconnection import GRID_TIMES_S, weighted_plant
+from vega_lpv.lpv_synthesis import synthesize
+from vega_lpv.weights import WEIGHT_SETS
 from vega_model.parameters import default_context
 
 

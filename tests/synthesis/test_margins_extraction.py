@@ -1,4 +1,4 @@
-"""``offline_synthesis.margins.extract_margins`` on loops given sample by sample; written for
+"""``vega_loops.margins.extract_margins`` on loops given sample by sample; written for
 the survivors of `make mutation MODULE=margins` (docs/TESTING.md).
 
 A loop is given by its samples: frequencies, magnitudes [dB] and phases [deg] picked by hand
@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from offline_synthesis import margins as M
+from vega_loops import margins as M
 
 
 def _loop(w, mag_db, phase_deg):

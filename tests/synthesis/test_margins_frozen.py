@@ -1,4 +1,4 @@
-"""``offline_synthesis.margins``: the quick stability check before a run
+"""``vega_loops.margins``: the quick stability check before a run
 (:func:`frozen_stability`, :func:`check_table_stabilises`) and the sweep driver
 (:func:`sweep` in process, :func:`_init_worker`, :func:`_time_task`); written for the
 "no tests" mutants of `make mutation MODULE=margins` (docs/TESTING.md).
@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from offline_synthesis import margins as M
+from vega_loops import margins as M
 
 ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = ROOT / "ros2_ws" / "src" / "vega_gnc" / "config" / "lpv_controller.npz"

@@ -1,4 +1,4 @@
-"""``offline_synthesis.margins``: the peak refinement, the sampled-data closed loop with a
+"""``vega_loops.margins``: the peak refinement, the sampled-data closed loop with a
 fractional delay, and the row of one frozen loop; written for the survivors of
 `make mutation MODULE=margins` (docs/TESTING.md).
 
@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from offline_synthesis import margins as M
+from vega_loops import margins as M
 
 ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = ROOT / "ros2_ws" / "src" / "vega_gnc" / "config" / "lpv_controller.npz"

@@ -1,4 +1,4 @@
-"""``offline_synthesis.margins``: tests written for the survivors of
+"""``vega_loops.margins``: tests written for the survivors of
 `make mutation MODULE=margins` (docs/TESTING.md).
 
 The Nyquist count of :func:`sampled_data_stability` refines its θ grid wherever the argument
@@ -12,7 +12,7 @@ polynomial derived by hand, as in test_margins_tool.py.
 import numpy as np
 import pytest
 
-from offline_synthesis import margins as M
+from vega_loops import margins as M
 
 T = 0.02                    # sample period [s]
 RHO, THETA0 = 1.0 - 1e-6, 1.0

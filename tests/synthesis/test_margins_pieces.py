@@ -1,4 +1,4 @@
-"""``offline_synthesis.margins``: the frequency responses and the pieces of one frozen loop,
+"""``vega_loops.margins``: the frequency responses and the pieces of one frozen loop,
 against hand formulas and an independent loop assembly; written for the survivors of
 `make mutation MODULE=margins` (docs/TESTING.md).
 
@@ -22,7 +22,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from offline_synthesis import margins as M
+from vega_loops import margins as M
 
 ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = ROOT / "ros2_ws" / "src" / "vega_gnc" / "config" / "lpv_controller.npz"
@@ -164,7 +164,7 @@ def test_frozen_loop_margins_against_verification_loop_margins(table, context):
     controller differ); both views of this module's loop agree closer still."""
     from vega_model.actuator import ActuatorParams
 
-    from offline_synthesis.verification import loop_margins
+    from vega_lpv.verification import loop_margins
 
     rate = M.runtime_rate(table)
     fake = SimpleNamespace(rho=table.grid_v_mps,

@@ -27,8 +27,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from offline_synthesis import verification
-from offline_synthesis.verification import loop_margins
+from vega_lpv import verification
+from vega_lpv.verification import loop_margins
 
 DEFAULT_W = np.logspace(-3, 3.3, 6000)          # loop_margins' default grid
 DENSE_W = np.logspace(-1, 2.2, 80_000)            # relative spacing 9.2e-5
@@ -395,7 +395,7 @@ def test_real_plant_margins_match_python_control(pd_table, t_s):
     stability_margins on L = −K·P_yu built from the exported plant matrices (the crossing
     at ω = 0 that python-control lists is below loop_margins' grid), and the meaning of
     the margins checked on the closed-loop eigenvalues."""
-    from offline_synthesis.interconnection import plant_for_simulation
+    from vega_lpv.interconnection import plant_for_simulation
     from vega_model.parameters import default_context
 
     ctx = default_context()

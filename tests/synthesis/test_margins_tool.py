@@ -1,4 +1,4 @@
-"""``vega margins`` (offline_synthesis.margins) against references independent of the code.
+"""``vega margins`` (vega_loops.margins) against references independent of the code.
 
 * margin extraction (:func:`extract_margins`): textbook loops with known margins —
   python-control ``stability_margins`` (a different implementation), the roots of the
@@ -31,7 +31,7 @@ import control
 import numpy as np
 import pytest
 
-from offline_synthesis import margins as M
+from vega_loops import margins as M
 
 ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = ROOT / "ros2_ws" / "src" / "vega_gnc" / "config" / "lpv_controller.npz"
@@ -292,7 +292,7 @@ def test_plant_assembly_agrees_with_verification_loop_margins(table, context):
     from vega_model.actuator import ActuatorParams
     from vega_model.delay import pade_ss
 
-    from offline_synthesis.verification import loop_margins
+    from vega_lpv.verification import loop_margins
 
     rate = M.runtime_rate(table)
     fake = SimpleNamespace(rho=table.grid_v_mps,

@@ -1,4 +1,4 @@
-"""``offline_synthesis.margins``: the verdicts, summaries and output helpers, against values
+"""``vega_loops.margins``: the verdicts, summaries and output helpers, against values
 worked out by hand in the test (written for the survivors and "no tests" mutants of
 `make mutation MODULE=margins`, docs/TESTING.md).
 
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from offline_synthesis import margins as M
+from vega_loops import margins as M
 
 ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = ROOT / "ros2_ws" / "src" / "vega_gnc" / "config" / "lpv_controller.npz"
@@ -274,7 +274,7 @@ def test_summarise_nominal_by_hand():
     s = M.summarise(result, table)
     assert s["what"] == ("classical margins of the flown (discrete, interpolated, clamped) "
                          "controller at the actuator input, per frozen flight time "
-                         "(offline_synthesis/margins.py)")
+                         "(offline/vega_loops/margins.py)")
     assert s["loop"] == {
         "zoh": "exact fundamental (1 - exp(-jwT))/(jwT): phase = half-sample delay, "
                "magnitude sinc",

@@ -1,4 +1,4 @@
-"""Mixed-μ upper bound (offline_synthesis.mu_analysis, issue 14 item 3b) against known answers.
+"""Mixed-μ upper bound (vega_analysis.mu_analysis, issue 14 item 3b) against known answers.
 
 * μ of matrices with closed-form answers: one full complex block (σ̄), block-diagonal and
   diagonal matrices (the largest block's μ; a real scalar only where its entry is real), and
@@ -24,8 +24,8 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
-from offline_synthesis import margins as M
-from offline_synthesis import mu_analysis as MU
+from vega_loops import margins as M
+from vega_analysis import mu_analysis as MU
 from vega_gnc.controller_table import default_table_path, load_controller_table
 
 RNG_SEED = 20240611

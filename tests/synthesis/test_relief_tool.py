@@ -40,7 +40,7 @@ def relief_table(tmp_path_factory):
 def test_only_the_asked_grid_time_changes(relief_table):
     from vega_gnc.controller_table import load_controller_table
 
-    from offline_synthesis import structured as S
+    from vega_design import structured as S
 
     new = json.loads(str(np.load(relief_table)["metadata"]))
     old = json.loads(str(np.load(SHIPPED)["metadata"]))

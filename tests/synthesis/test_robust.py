@@ -1,4 +1,4 @@
-"""Robust analysis (offline_synthesis.robust, issue 14 item 3 a/c): disk margins checked on
+"""Robust analysis (vega_analysis.robust, issue 14 item 3 a/c): disk margins checked on
 textbook loops with known answers and against python-control; the worst-case search and the
 destabilising scale checked on the shipped table against independent evaluations."""
 
@@ -8,8 +8,8 @@ import control as ct
 import numpy as np
 import pytest
 
-from offline_synthesis import margins as M
-from offline_synthesis import robust as R
+from vega_loops import margins as M
+from vega_analysis import robust as R
 from vega_gnc.controller_table import default_table_path, load_controller_table
 
 

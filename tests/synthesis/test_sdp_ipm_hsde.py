@@ -6,10 +6,10 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
-from offline_synthesis.gridded_plant import GriddedPlant
-from offline_synthesis.lpv_synthesis import IPM, synthesize
-from offline_synthesis.pipeline import SOLVER_PATHS, run_synthesis
-from offline_synthesis.sdp_ipm import solve_conic, solve_conic_hsde
+from vega_lpv.gridded_plant import GriddedPlant
+from vega_lpv.lpv_synthesis import IPM, synthesize
+from vega_lpv.pipeline import SOLVER_PATHS, run_synthesis
+from vega_lpv.sdp_ipm import solve_conic, solve_conic_hsde
 from vega_core.errors import BadArgument
 
 from test_lmi_lpv import RATES, RHO, plant_at

@@ -1,6 +1,6 @@
 """The shipped default controller table (vega_gnc/config/tvc_controller.npz, `vega design`)
 meets the flight-design requirements it was tuned for, checked with the independent margin
-tool (offline_synthesis.margins: its own frequency grid, the flown interpolated controller):
+tool (vega_loops.margins: its own frequency grid, the flown interpolated controller):
 
 * it is the structured design and covers the whole flight (pad noise to dispersed burn-out);
 * every nominal frozen loop 0–100 s every 0.5 s is stable with the flown controller;
@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from offline_synthesis import margins as M
-from offline_synthesis.structured import V_BELOW_LIFTOFF_MPS, V_BEYOND_BURNOUT
+from vega_loops import margins as M
+from vega_design.structured import V_BELOW_LIFTOFF_MPS, V_BEYOND_BURNOUT
 from vega_gnc.controller_table import default_table_path, load_controller_table
 
 

@@ -1,11 +1,11 @@
-"""The structured controller design (offline_synthesis.structured) against hand references.
+"""The structured controller design (vega_design.structured) against hand references.
 
 * the controller realisation: DC gains per input, the notch's zero at its frequency, the
   low-pass corner, the order — from transfer-function formulas, not from the code's own
   pieces;
 * the design plants: the set named in the docstring (sizes, the bending frequencies span
   exactly the uncertainty bounds, the Table 2.3 J plant);
-* the cost: its closed-loop radius is the exact sampled-data verdict of offline_synthesis.margins
+* the cost: its closed-loop radius is the exact sampled-data verdict of vega_loops.margins
   (an independent assembly), a destabilising controller is penalised as unstable, a bending
   mode left unattenuated is flagged;
 * the export: the table loads through the flight loader, NaN where an LPV table has γ, its
@@ -18,9 +18,9 @@ import math
 import numpy as np
 import pytest
 
-from offline_synthesis import structured as S
-from offline_synthesis.export import discretise
-from offline_synthesis.margins import plant_loop_ss, sampled_data_model, sampled_data_stability
+from vega_design import structured as S
+from vega_loops.export import discretise
+from vega_loops.margins import plant_loop_ss, sampled_data_model, sampled_data_stability
 from fixture_tables import STRUCTURED_2026_11_27
 
 
@@ -107,7 +107,7 @@ def ds50(context, uset):
 
 def test_cost_radius_is_the_exact_sampled_data_verdict(context, ds50):
     from vega_model.actuator import ActuatorParams
-    from offline_synthesis.margins import total_delay_s
+    from vega_loops.margins import total_delay_s
 
     x = np.array(S.START_X)
     _, detail = S.evaluate(x, ds50, detail=True)
@@ -164,7 +164,7 @@ def test_short_design_and_export(context, tmp_path):
     np.testing.assert_allclose(table.D[2], D)
     np.testing.assert_allclose(table.Dd[2], discretise(A, B, C, D, 0.02)[3])
     # the controller step 4 evaluates between grid points is the one the table flies there
-    from offline_synthesis.margins import flown_controller
+    from vega_loops.margins import flown_controller
 
     flown, _, clamped = flown_controller(table, context.parameters(47.0).v_mps)
     between = S.flown_between(context, (46.0, design.x[0]), (48.0, design.x[1]), 47.0)
@@ -276,7 +276,7 @@ def test_exact_band_criterion_agrees_with_the_margin_tool(gain, phase_deg, ok):
     """band_criterion_misses against margins.extract_margins + bending_ok (the verification's
     own implementation) on a damped resonance L = g·e^{jφ}·ω₀²/(s² + 2ζω₀s + ω₀²)·e^{−sτ}
     whose band holds phase and gain crossovers of known size."""
-    from offline_synthesis.margins import bending_ok, extract_margins
+    from vega_loops.margins import bending_ok, extract_margins
 
     w0, zeta, tau = 15.0, 0.1, 0.05
     w = np.geomspace(1.0, 60.0, 6000)

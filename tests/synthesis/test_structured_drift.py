@@ -1,4 +1,4 @@
-"""Step 6 of the structured design (offline_synthesis.structured.scale_drift): the drift-rate
+"""Step 6 of the structured design (vega_design.structured.scale_drift): the drift-rate
 gain k_ż scaled after max-Q, kept only where the scaled point adds no requirement miss — on the
 design sets, and at `vega robust`'s worst case (the exact bending criterion) between grid
 points."""
@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from offline_synthesis import structured as S
-from offline_synthesis.structured_worst_case import worst_case_bending_ok as WORST
+from vega_design import structured as S
+from vega_analysis.robust import worst_case_bending_ok as WORST
 from fixture_tables import STRUCTURED_2026_11_27
 
 SHIPPED = STRUCTURED_2026_11_27      # its drift record and hand edits are the real case
@@ -140,7 +140,7 @@ def test_worst_case_times_are_vega_robusts_grid_between_two_points():
 def test_pair_table_flies_what_the_whole_table_flies(context):
     """Between two grid points the two-point table of the check is the shipped table's flown
     controller (same Tustin matrices, same interpolation in velocity)."""
-    from offline_synthesis.margins import flown_controller
+    from vega_loops.margins import flown_controller
     from vega_gnc.controller_table import load_controller_table
 
     meta = json.loads(str(np.load(SHIPPED)["metadata"]))

@@ -1,5 +1,5 @@
 """The first grid point's controller flies alone from 0 s, before lift-off velocity, where the
-thrust is still 0 (offline_synthesis.structured.PAD_TIMES_S): its design set holds the bending
+thrust is still 0 (vega_design.structured.PAD_TIMES_S): its design set holds the bending
 plants at 0 s too, and step 7 checks 0 s.
 
 The real case (2026-11-27, eighth session): the first from-scratch `vega design` table
@@ -15,9 +15,9 @@ import pytest
 from vega_model.parameters import default_context
 from vega_model.uncertainty import UncertaintySet
 
-from offline_synthesis import corner_repair as R
-from offline_synthesis import margins as M
-from offline_synthesis import structured as S
+from vega_design import corner_repair as R
+from vega_loops import margins as M
+from vega_design import structured as S
 from fixture_tables import STRUCTURED_2026_11_27
 
 SEED1_05 = np.array([float.fromhex(h) for h in (

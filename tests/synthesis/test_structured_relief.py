@@ -1,10 +1,10 @@
-"""Load relief in the structured design (offline_synthesis.structured: RELIEF_PARAMETERS, the
+"""Load relief in the structured design (vega_design.structured: RELIEF_PARAMETERS, the
 wind → α load objective; issue 9 item 3, docs/FLIGHT_DESIGN.md §7).
 
 * the relief branch: k_a·s/(τs + 1)·ż added to the feedback sum, checked against the transfer
   function formula; k_a = 0 is the controller without relief (the same input-output map);
 * the load figure V·α/v_w against an independent assembly: the exact sampled-data closed loop
-  of offline_synthesis.margins with the wind held over a sample (the controller, the hold
+  of vega_loops.margins with the wind held over a sample (the controller, the hold
   and the delay as flown), at the low frequencies of the load band;
 * the sign: on the nominal plant at max-Q with a tuned controller, relief of the negative sign
   (nose into the wind) lowers the wind → α gain, the other sign raises it;
@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from offline_synthesis import structured as S
-from offline_synthesis.export import discretise
-from offline_synthesis.margins import _closed_loop_matrices, corner_plant, sampled_data_model
+from vega_design import structured as S
+from vega_loops.export import discretise
+from vega_loops.margins import _closed_loop_matrices, corner_plant, sampled_data_model
 
 DT = 0.02
 # a max-Q tuning of the shipped table (40 s grid point, offline_synthesis 2026-11-27)

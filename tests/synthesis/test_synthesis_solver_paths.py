@@ -13,9 +13,9 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
-from offline_synthesis.gridded_plant import GriddedPlant
-from offline_synthesis.lpv_synthesis import IPM, synthesize
-from offline_synthesis.sdp_ipm import solve_conic
+from vega_lpv.gridded_plant import GriddedPlant
+from vega_lpv.lpv_synthesis import IPM, synthesize
+from vega_lpv.sdp_ipm import solve_conic
 
 from test_lmi_lpv import RATES, RHO, plant_at
 

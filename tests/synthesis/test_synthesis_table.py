@@ -13,10 +13,10 @@ import math
 import numpy as np
 import pytest
 
-from offline_synthesis.certificate import closed_loop, hinf_norm
-from offline_synthesis.interconnection import GRID_TIMES_S, weighted_plant
-from offline_synthesis.pipeline import DEFAULT_TABLE, rate_bounds_from_trajectory
-from offline_synthesis.weights import WEIGHT_SETS
+from vega_lpv.certificate import closed_loop, hinf_norm
+from vega_lpv.interconnection import GRID_TIMES_S, weighted_plant
+from vega_lpv.pipeline import DEFAULT_TABLE, rate_bounds_from_trajectory
+from vega_lpv.weights import WEIGHT_SETS
 from vega_gnc.controller_table import load_controller_table
 from vega_model.dynamics import OUTPUTS
 from vega_model.parameters import default_context

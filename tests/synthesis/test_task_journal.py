@@ -1,4 +1,4 @@
-"""The design's task journal (offline_synthesis.task_journal): an interrupted `vega design`
+"""The design's task journal (vega_design.task_journal): an interrupted `vega design`
 resumes with the finished tasks' results and gives the uninterrupted run's table.
 
 Keys are checked on hand cases (identity does not matter, one bit of a float does), the file on
@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from vega_core.errors import BadFile
 
-from offline_synthesis import structured as S
-from offline_synthesis import task_journal as J
+from vega_design import structured as S
+from vega_design import task_journal as J
 
 
 def test_keys_follow_values_not_identity():
@@ -102,7 +102,7 @@ def test_the_code_digest_follows_the_code_files_not_the_caches(tmp_path, monkeyp
     (package / "__init__.py").write_text("X = 1\n")
     (package / "data.yaml").write_text("a: 1\n")
     monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setattr(J, "CODE_PACKAGES", ("offline_synthesis", "journal_probe_pkg"))
+    monkeypatch.setattr(J, "CODE_PACKAGES", ("vega_design", "journal_probe_pkg"))
     digest = J.code_digest()
     assert len(digest) == 64 and digest == J.code_digest()
     (package / "__pycache__" / "x.pyc").write_bytes(b"cache")

@@ -1,10 +1,10 @@
-"""Time-domain margins (offline_synthesis.time_margins) and the loop-perturbation hook of the
+"""Time-domain margins (vega_analysis.time_margins) and the loop-perturbation hook of the
 in-process closed loop (vega_sim.closed_loop.LoopPerturbation), on the shipped table.
 
 The hook is checked against its definition (the command the actuator holds over every 1 ms
 step, rebuilt here from the controller's recorded commands), the verdict on
 flights that are plainly stable and plainly lost, and the bisection against the
-frequency-domain margin of the same loop (offline_synthesis.margins.analyse_loop). Short
+frequency-domain margin of the same loop (vega_loops.margins.analyse_loop). Short
 windows and flights keep the run time small (about 20 flights in all).
 """
 
@@ -15,8 +15,8 @@ import math
 import numpy as np
 import pytest
 
-from offline_synthesis import margins as M
-from offline_synthesis import time_margins as T
+from vega_loops import margins as M
+from vega_analysis import time_margins as T
 from vega_gnc.controller_table import default_table_path, load_controller_table
 from vega_sim.assembly import loop_timing
 from vega_sim.closed_loop import LoopPerturbation, run_scenario

@@ -27,13 +27,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from offline_synthesis.certificate import certificate_check
-from offline_synthesis.gridded_plant import GriddedPlant
-from offline_synthesis.interconnection import weighted_plant
-from offline_synthesis.lpv_synthesis import synthesize
-from offline_synthesis.verification import (bending_rate_term, dense_certificate,
+from vega_lpv.certificate import certificate_check
+from vega_lpv.gridded_plant import GriddedPlant
+from vega_lpv.interconnection import weighted_plant
+from vega_lpv.lpv_synthesis import synthesize
+from vega_lpv.verification import (bending_rate_term, dense_certificate,
                                             time_at_velocity)
-from offline_synthesis.weights import SHIPPED, THESIS
+from vega_lpv.weights import SHIPPED, THESIS
 from vega_model.parameters import ModelContext, default_context
 from vega_model.vehicle_data import default_vehicle_path, load_vehicle_data
 

@@ -9,11 +9,11 @@ import math
 import numpy as np
 import pytest
 
-from offline_synthesis.gridded_plant import GriddedPlant
-from offline_synthesis.interconnection import weighted_plant
-from offline_synthesis.lpv_synthesis import synthesize
-from offline_synthesis.verification import LoopMargins, frozen_point_sweep, time_at_velocity
-from offline_synthesis.weights import SHIPPED
+from vega_lpv.gridded_plant import GriddedPlant
+from vega_lpv.interconnection import weighted_plant
+from vega_lpv.lpv_synthesis import synthesize
+from vega_lpv.verification import LoopMargins, frozen_point_sweep, time_at_velocity
+from vega_lpv.weights import SHIPPED
 from vega_model.parameters import default_context
 
 

@@ -17,7 +17,7 @@ def misses_check(context, uset, worse: list, against: str = "before"):
     """A check ``(label, t_s, K_new, K_old)`` that prints the requirement misses of both
     discrete controllers on the design set of ``t_s`` and appends ``"<label> <t> s"`` to
     ``worse`` where the new one adds a miss."""
-    from offline_synthesis import structured as S
+    from vega_design import structured as S
 
     def check(label, t_s, K_new, K_old):
         ds = S.design_set(context, t_s, uset)
@@ -32,9 +32,9 @@ def misses_check(context, uset, worse: list, against: str = "before"):
 
 def write_design(out: Path, context, uset, times, xs, anchors_s, tuning):
     """Evaluate every grid point on its design set, write the structured table ``out`` and
-    its report ``out.json``; return the :class:`~offline_synthesis.structured.StructuredDesign`."""
-    from offline_synthesis import structured as S
-    from offline_synthesis.margins import json_ready
+    its report ``out.json``; return the :class:`~vega_design.structured.StructuredDesign`."""
+    from vega_design import structured as S
+    from vega_loops.margins import json_ready
 
     times = [float(t) for t in times]
     xs = [np.asarray(x, dtype=float) for x in xs]

@@ -1,4 +1,4 @@
-"""Write the drift-gain schedule of `vega design` (offline_synthesis/data/drift_gains.yaml) from a
+"""Write the drift-gain schedule of `vega design` (offline/vega_design/data/drift_gains.yaml) from a
 structured controller table: its drift gains per unit k_θ (g_ż = k_ż/k_θ, g_z = k_z/k_θ: the
 attitude the drift loop commands per m/s of drift rate and per m of drift; schema 2, since
 2026-12-02) per grid time, with design step 6 (k_ż × factor from its start time, where its
@@ -30,7 +30,7 @@ from undo_drift import unscaled
 def schedule(table: Path, per_k_theta: bool = True) -> tuple[list[list[float]], dict]:
     """Rows ``[t_s, g_zdot, g_z]`` (per unit k_θ; ``[t_s, k_zdot, k_z]`` without
     ``per_k_theta``), step 6 undone, up to the tail-off hold time, and the provenance."""
-    from offline_synthesis import structured as S
+    from vega_design import structured as S
 
     meta = json.loads(str(np.load(table)["metadata"]))
     if meta.get("design") != "structured":
@@ -72,7 +72,7 @@ def main(argv=None) -> int:
         head = ["schema_version: 2", f"source: {json.dumps(source)}",
                 "columns: [t_s, g_zdot_mrad_per_mps_per_k_theta, g_z_urad_per_m_per_k_theta]"]
     lines = [
-        "# Drift-gain schedule of `vega design` (offline_synthesis.structured.DRIFT_GAINS_PATH):",
+        "# Drift-gain schedule of `vega design` (vega_design.structured.DRIFT_GAINS_PATH):",
         *what,
         "# the last row held to burn-out (one controller over the tail-off). The tuning holds",
         "# the two drift gains at the schedule and tunes the twelve others",

@@ -7,7 +7,7 @@ shippable as a whole) replace those of the table flown before, in three windows 
 56–64 s, 32–36 s); `vega design --drift-from` applied step 6. Every grid point of the window
 and the flown (interpolated) controller midway across both window edges are evaluated on their
 design sets and printed with their requirement misses
-(offline_synthesis.structured.requirement_misses); nothing is written when a grafted point or
+(vega_design.structured.requirement_misses); nothing is written when a grafted point or
 an edge midpoint adds a miss to what the base table had there. The tuning record lists the
 grafts (``solver.grafts``: window and the source table's SHA-256).
 
@@ -36,7 +36,7 @@ def _design(path: Path):
 
 def main(argv=None) -> int:
     """Graft, check, write."""
-    from offline_synthesis import structured as S
+    from vega_design import structured as S
     from vega_model.parameters import default_context
     from vega_model.uncertainty import UncertaintySet
 

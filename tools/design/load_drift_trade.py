@@ -1,12 +1,12 @@
 """The load/drift trade of the flown structured design (issue 9 item 3; docs/FLIGHT_DESIGN.md §7).
 
 Variants of a structured controller table that differ only in their drift feedback, each checked
-on the nominal frozen loops (offline_synthesis.margins, every 0.5 s, the requirement of
+on the nominal frozen loops (vega_loops.margins, every 0.5 s, the requirement of
 `vega margins`) and flown on the first N samples of a Monte Carlo campaign of the shipped
-dispersions (in process, bit-identical to the SIL; offline_synthesis.campaign):
+dispersions (in process, bit-identical to the SIL; vega_campaign.campaign):
 
 * ``drift xF``: the drift-rate gain k_ż × F from 70 s on (design step 6,
-  offline_synthesis.structured.scale_drift without its requirement check, so that the
+  vega_design.structured.scale_drift without its requirement check, so that the
   variants that break a margin are shown too);
 * ``relief L``: k_ż + L·(Q/Q_max)·k_θ/V at every grid time, i.e. feedback of the
   ground-relative angle of attack θ + ż/V weighted by dynamic pressure (L > 0 turns the nose
@@ -47,7 +47,7 @@ below the ≈ 2 rad/s rigid crossover at max-Q, above the drift dynamics)."""
 
 def _base(table_path: Path):
     """Grid times and unscaled parameters of a structured table."""
-    from offline_synthesis import structured as S
+    from vega_design import structured as S
 
     meta = json.loads(str(np.load(table_path)["metadata"]))
     if meta.get("design") != "structured":
@@ -62,8 +62,8 @@ def _base(table_path: Path):
 
 def _variant_table(path: Path, name: str, times, x0, anchors, context) -> Path:
     """Write variant ``name`` of the base design to ``path``."""
-    from offline_synthesis import structured as S
-    from offline_synthesis.interconnection import cascade
+    from vega_design import structured as S
+    from vega_loops.margins import cascade
 
     kind, value = name.split()
     value = float(value.lstrip("x"))
@@ -128,7 +128,7 @@ def _nominal_margins(table_path: Path) -> dict:
 
 def _fly(table_path: Path, runs: int) -> dict:
     """The first ``runs`` samples of the shipped dispersions on scenario nominal, seed 0."""
-    from offline_synthesis import campaign as C
+    from vega_campaign import campaign as C
     from vega_gnc.controller_table import load_controller_table
     from vega_sim.closed_loop import run_scenario
     from vega_sim.scenario import load_scenario

@@ -3,7 +3,7 @@
 Issue 9 item 3, docs/FLIGHT_DESIGN.md §7: load-relief feedback added on top of the tuned
 attitude gains broke the nominal margins; this re-tunes the attitude gains *with* it. Every
 grid point of the window is re-tuned with the relief parameters of
-offline_synthesis.structured (RELIEF_PARAMETERS: the lateral acceleration derived from the INS
+vega_design.structured (RELIEF_PARAMETERS: the lateral acceleration derived from the INS
 drift rate, k_a·s/(τs + 1)·ż) and the load objective (``--load-weight`` × the nominal loop's
 peak wind → α gain V·|α/v_w| over 0.02–1 rad/s, structured.with_load) added to the design
 cost; seeded from the table's own parameters (relief off) and from the previous re-tuned
@@ -48,7 +48,7 @@ def retune(context, uset, t_s: float, starts, weight: float, seed: int, maxiter:
     (16-parameter vectors). Returns (x, cost, detail)."""
     from scipy.optimize import minimize
 
-    from offline_synthesis import structured as S
+    from vega_design import structured as S
 
     ds = S.with_load(S.design_set(context, t_s, uset), context, weight, metric)
     x0 = min(starts, key=lambda c: S.evaluate(c, ds))
@@ -77,7 +77,7 @@ def _simplex(x0, lo, hi):
 
 def main(argv=None) -> int:
     """Re-tune, check, write."""
-    from offline_synthesis import structured as S
+    from vega_design import structured as S
     from vega_model.parameters import default_context
     from vega_model.uncertainty import UncertaintySet
 

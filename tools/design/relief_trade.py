@@ -1,7 +1,7 @@
 """The load-relief trade at one grid time: relief gain vs nominal margins vs the wind → α gain.
 
 Issue 9 item 3, docs/FLIGHT_DESIGN.md §7. For each relief gain k_a (held fixed) the other 15
-parameters of the structured controller with relief (offline_synthesis.structured:
+parameters of the structured controller with relief (vega_design.structured:
 PARAMETERS + RELIEF_PARAMETERS, the filter time constant τ included) are re-tuned jointly on
 the design set of that time with the load objective (structured.with_load, ``--load-weight``):
 differential evolution seeded from the table's own parameters (k_θ lowered by 0, 0.1, 0.2,
@@ -34,7 +34,7 @@ def tune_fixed_gain(ds, base, k_acc: float, seed: int, maxiter: int, popsize: in
     16-parameter start. Returns (x, cost, detail)."""
     from scipy.optimize import differential_evolution, minimize
 
-    from offline_synthesis import structured as S
+    from vega_design import structured as S
 
     lo, hi = S.bounds_for(base.size)
     free = [i for i in range(base.size) if i != 14]
@@ -158,7 +158,7 @@ def plot(json_paths, out_png: Path, window_report: Path | None = None,
 
 def main(argv=None) -> int:
     """Tune per gain, print, write JSON (or, with --plot, only plot the JSON files)."""
-    from offline_synthesis import structured as S
+    from vega_design import structured as S
     from vega_model.parameters import default_context
     from vega_model.uncertainty import UncertaintySet
 

@@ -12,7 +12,7 @@ notch at 82 s (notch1_zeta_num 0.0467 → 0.040) meets the criterion with k_ż �
 
 The grid point and the flown controller midway to both neighbours are evaluated on their
 design sets and printed with their requirement misses
-(offline_synthesis.structured.requirement_misses); nothing is written when the value leaves
+(vega_design.structured.requirement_misses); nothing is written when the value leaves
 the parameter's search box or the edit adds a miss. The tuning record lists the edit
 (``solver.edits``: time, parameter, old and new value).
 
@@ -32,7 +32,7 @@ from design_table import misses_check, structured_grid_point, write_design
 
 def main(argv=None) -> int:
     """Edit, check, write (table and JSON report, as `vega design` does)."""
-    from offline_synthesis import structured as S
+    from vega_design import structured as S
     from vega_model.parameters import default_context
     from vega_model.uncertainty import UncertaintySet
 

@@ -25,7 +25,7 @@ import numpy as np
 from design_table import write_design
 
 MARK = "; k_zdot x "
-"""What :func:`offline_synthesis.structured.scale_drift` appends to a scaled point's record."""
+"""What :func:`vega_design.structured.scale_drift` appends to a scaled point's record."""
 
 
 def unscaled(meta: dict) -> tuple[list[float], list[np.ndarray], dict]:
@@ -33,7 +33,7 @@ def unscaled(meta: dict) -> tuple[list[float], list[np.ndarray], dict]:
 
     Raises SystemExit when the record does not say the step was applied, or says it for no
     grid point."""
-    from offline_synthesis import structured as S
+    from vega_design import structured as S
 
     solver = dict(meta.get("solver", {}))
     if "drift" not in solver:

@@ -58,7 +58,7 @@ DO_NOT_MUTATE_PATTERNS = [
 # ``Path(__file__).parents[...]`` still finds them.
 ROOT_LINKS = ["ros2_ws", "docs", "bench", "bags", "tools"]
 # What is taken from the commit (the rest, e.g. the built ROS install, from the checkout).
-TREE_PATHS = ["ros2_ws/src", "offline_synthesis", "tests", "docs", "tools"]
+TREE_PATHS = ["ros2_ws/src", "offline", "cli", "tests", "docs", "tools"]
 
 # Seconds added to mutmut's per-mutant limit (15 × the covering tests' own durations): module-
 # and session-scoped fixtures (an SDP solve, a simulated flight) run again in every mutant's
@@ -95,7 +95,8 @@ def _packages(tree):
     """Every Python package of the project: (import name, source directory)."""
     found = [(p.name, p / p.name) for p in sorted((tree / "ros2_ws" / "src").iterdir())
              if (p / p.name / "__init__.py").is_file()]
-    found.append(("offline_synthesis", tree / "offline_synthesis" / "offline_synthesis"))
+    found += [(p.name, p) for base in ("offline", "cli") for p in sorted((tree / base).iterdir())
+              if (p / "__init__.py").is_file()]
     return found
 
 

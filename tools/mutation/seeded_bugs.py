@@ -20,7 +20,7 @@ STAGE = ROOT / "build" / "mutation" / "_seeded"
 # (bug, package-relative file, original text, bug text, tests that must fail)
 BUGS = [
     ("certificate accepts an indefinite closed-loop Lyapunov matrix",
-     "offline_synthesis/certificate.py",
+     "offline/vega_lpv/certificate.py",
      "-np.linalg.eigvalsh(0.5 * (P_cl + P_cl.T))[0])", "-np.inf)",
      ["tests/synthesis/test_certificate_negative.py::test_non_positive_lyapunov_matrix_is_rejected"]),
     ("negative command beyond -6.5 deg not flagged LIMITED",
@@ -34,11 +34,11 @@ BUGS = [
      "vega_model/parameters.py", "q = 0.5 * rho * v * v\n        s1", "q = self.q_pa\n        s1",
      ["tests/model/test_uncertainty_perturbation.py::test_hand_numbers_for_velocity_and_density"]),
     ("phase margin of the synthesis report given as 180 deg - PM",
-     "offline_synthesis/verification.py", "margin = np.degrees(np.abs(np.angle(-L[k])))",
+     "offline/vega_lpv/verification.py", "margin = np.degrees(np.abs(np.angle(-L[k])))",
      "margin = 180.0 - np.degrees(np.abs(np.angle(-L[k])))",
      ["tests/synthesis/test_margins_reference.py::test_open_loop_stable_textbook_loop"]),
     ("bending peak of the synthesis report taken as the minimum in its window",
-     "offline_synthesis/verification.py", "(w_radps < 1.2 * w0)].max()",
+     "offline/vega_lpv/verification.py", "(w_radps < 1.2 * w0)].max()",
      "(w_radps < 1.2 * w0)].min()",
      ["tests/synthesis/test_margins_reference.py::test_bending_peaks_are_the_maximum_in_each_window"]),
     ("replay --check-controller IDENTICAL with more commands than the bag",
@@ -52,7 +52,8 @@ BUGS = [
 def _packages():
     found = {p.name: p / p.name for p in (ROOT / "ros2_ws" / "src").iterdir()
              if (p / p.name / "__init__.py").is_file()}
-    found["offline_synthesis"] = ROOT / "offline_synthesis" / "offline_synthesis"
+    found.update({p.name: p for base in ("offline", "cli") for p in (ROOT / base).iterdir()
+                  if (p / "__init__.py").is_file()})
     return found
 
 

@@ -1,6 +1,6 @@
 """Scheduled LPV controller tables: the flight software's trusted copy of the synthesis.
 
-One versioned ``.npz`` file (written by ``offline_synthesis.export``) holds, per scheduling
+One versioned ``.npz`` file (written by ``vega_loops.export``) holds, per scheduling
 grid point (velocity, increasing): the continuous controller ``A B C D`` and its discretised
 form ``Ad Bd Cd Dd`` at the controller rate, plus γ, the rate bounds and a JSON metadata
 string. :func:`load_controller_table` validates everything before the loop ever sees it —
@@ -42,9 +42,9 @@ REQUIRED_METADATA = ("input_names", "measurement_sign", "output_name", "interpol
                      "discretisation", "controller_stable")
 _MATRICES = ("A", "B", "C", "D", "Ad", "Bd", "Cd", "Dd")
 DESIGNS = ("lpv", "structured")
-"""``metadata['design']``: ``lpv`` (offline_synthesis.pipeline, γ and the rate bounds are its
+"""``metadata['design']``: ``lpv`` (vega_lpv.pipeline, γ and the rate bounds are its
 certificate's figures; the default when the key is absent) or ``structured``
-(offline_synthesis.structured: a fixed-structure controller tuned per grid point, which has
+(vega_design.structured: a fixed-structure controller tuned per grid point, which has
 no γ and no rate bounds — the file stores NaN for them, and any other value is refused)."""
 _LPV_ONLY = ("gamma", "gamma_min", "rate_bounds_mps2")
 _REQUIRED_KEYS = ("format_version", "grid_v_mps", "dt_s", "gamma", "gamma_min",

@@ -2,7 +2,7 @@
 
 A launcher does not fight the forecast wind with its attitude loop: the first-stage steering is
 biased so that the vehicle flies the expected (design) wind at a small air-relative angle of
-attack (docs/GUIDANCE.md). ``offline_synthesis.guidance`` computes that bias — the reference
+attack (docs/GUIDANCE.md). ``vega_reference.guidance`` computes that bias — the reference
 deviations from the nominal pitch programme and the nozzle feed-forward that flies them — and
 exports one versioned ``.npz`` file; this module loads and validates it before the loop ever
 sees it, and interpolates it on board.

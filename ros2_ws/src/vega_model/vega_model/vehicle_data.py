@@ -153,7 +153,7 @@ _TRAJECTORY_FIELDS: dict[str, tuple[str, str]] = {
     "aerodynamics.crossflow.eta": ("1", "scalar"),
     "aerodynamics.crossflow.c_dc": ("1", "scalar"),
     "aerodynamics.crossflow.planform_area_m2": ("m^2", "scalar"),
-    # --- ascent trajectory (offline_synthesis/trajectory.py) ---
+    # --- ascent trajectory (offline/vega_reference/trajectory.py) ---
     "trajectory.liftoff_time_s": ("s", "scalar"),
     "trajectory.pitchover_start_s": ("s", "scalar"),
     "trajectory.pitchover_rate_radps": ("rad/s", "scalar"),

@@ -27,7 +27,7 @@ nodes built and driven that way reproduce :func:`run_scenario` bit for bit.
 Test hook (off by default, no SIL counterpart): ``run_scenario(..., perturbation=
 LoopPerturbation(...))`` inserts a gain and/or a delay at the actuator input inside a time
 window (:class:`LoopPerturbation`; the time-domain margins of
-:mod:`offline_synthesis.time_margins`). Without it the run is the one above, bit for bit.
+:mod:`vega_analysis.time_margins`). Without it the run is the one above, bit for bit.
 """
 
 from __future__ import annotations
@@ -198,7 +198,7 @@ class LoopPerturbation:
 
     switched at t0 and t1 exactly (1 ms grid): a gain and a transport delay inserted at the
     actuator input, the loop broken where the frequency-domain margins break it
-    (:mod:`offline_synthesis.margins`). At t0 the nozzle goes back to the command of Δ
+    (:mod:`vega_loops.margins`). At t0 the nozzle goes back to the command of Δ
     earlier; at t1 it returns to the newest one. The controller is not told (``cmd_rad``
     records what it computed, ``beta_cmd_rad`` what the actuator held); the actuator's
     position and rate limits stay as they are (the saturation is part of the nonlinear loop).

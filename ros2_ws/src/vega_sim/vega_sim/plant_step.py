@@ -50,7 +50,7 @@ __all__ = [
 PLANT_MODELS = ("linear", "nonlinear")
 
 # W_w: the thesis drove its Dryden filter with a constant 1 through this weight (thesis §4.5.1,
-# "three standard deviations"; the same number as offline_synthesis.weights.THESIS.wind_sigmas).
+# "three standard deviations"; the same number as vega_lpv.weights.THESIS.wind_sigmas).
 THESIS_DRYDEN_WEIGHT = 3.0
 
 _N = len(STATES)
