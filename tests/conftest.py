@@ -6,8 +6,10 @@ gets the project's ROS environment from :mod:`vega_bringup.rosenv`: discovery on
 caller, e.g. ``make test`` through ``vega-env``, already chose one). Child processes get the
 same environment from the ``ros_env`` fixture, never a stripped one.
 
-Markers: ``ros`` marks tests that start real ROS 2 (rclpy, Fast DDS) participants;
-deselect them with ``-m "not ros"``.
+Markers (docs/TESTING.md, "Test tiers"): ``slow`` marks tests that take over 2 s (measured
+with ``--durations``, a module-scoped fixture's set-up counted to every test that needs it);
+``make check`` runs the fast tier, ``-m "not slow"``. ``ros`` marks tests that start real ROS 2
+(rclpy, Fast DDS) participants; deselect them with ``-m "not ros"``.
 """
 
 import fcntl
@@ -17,8 +19,6 @@ import sys
 from pathlib import Path
 
 import pytest
-
-from thesis_reference import reference_dir as _thesis_reference_dir
 
 _REPO_ROOT = Path(__file__).resolve().parent.parent
 
@@ -30,21 +30,16 @@ except ImportError:  # pytest started outside the project environment (no worksp
 
 __all__ = ["ros_domain_id", "ros_env"]
 
-# The cross-check against the thesis' full reference files is collected only where they are
-# present (../shared/reference in development checkouts and CI, or VEGA_THESIS_REFERENCE_DIR):
-# a clone without them collects nothing from it and reports no skip. The calibration tests
-# themselves read the committed table tests/data/thesis_reference_points.csv and always run.
-collect_ignore = ([] if _thesis_reference_dir() is not None
-                  else ["synthesis/test_trajectory_reference_crosscheck.py"])
-
 _DOMAIN_KEY = pytest.StashKey[int]()
 _SHM = Path("/dev/shm")
 
 
 def pytest_configure(config):
-    """Register the marker, silence a third-party warning, apply the ROS environment."""
+    """Register the markers, silence a third-party warning, apply the ROS environment."""
     config.addinivalue_line(
         "markers", "ros: starts real ROS 2 participants (rclpy, Fast DDS on localhost)")
+    config.addinivalue_line(
+        "markers", "slow: takes over 2 s (--durations); left out of the fast tier, make check")
     # lark-parser 0.12, pinned by the ROS 2 Jazzy wheels (rosidl_parser), imports these.
     for module in ("sre_parse", "sre_constants"):
         config.addinivalue_line(

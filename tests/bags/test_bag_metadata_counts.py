@@ -1,7 +1,7 @@
 """metadata.yaml lies outside the MCAP CRCs: a run bag whose metadata.yaml lists another message
 count for a topic than its MCAP file holds is refused by `vega check` in one line, exit 2
-(adversarial pass of issue 11, docs/ADVERSARIAL.md: an edited count — what `ros2 bag info`
-shows — used to pass unnoticed)."""
+(docs/ADVERSARIAL.md row 80: the count in metadata.yaml is what `ros2 bag info` shows, and no
+CRC covers it)."""
 
 import shutil
 

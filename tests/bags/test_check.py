@@ -89,7 +89,7 @@ def test_json_holds_the_same_verdict(good_bag, tmp_path, capsys):
     assert drift["bound"] == 500.0 and math.isclose(drift["margin"], 500.0 - abs(drift["value"]))
     assert f"{drift['value']:.6g} m" in out
     assert verdict["metadata"][bagio.META_SCENARIO] == "thesis"
-    # the Qα row: the worst-margin sample and, beside it, the largest |Qα| (issue 11 item 8)
+    # the Qα row: the worst-margin sample and, beside it, the largest |Qα|
     check = bagcheck.check_bag(good_bag)
     qa = check.result.q_alpha_pa_rad
     row = next(r for r in verdict["requirements"] if r["key"] == "q_alpha")
@@ -142,7 +142,7 @@ def test_actuator_angle_not_command_is_checked(run, tmp_path):
 
 def test_strict_bound_reached_names_no_minus_zero(run, tmp_path, capsys):
     """An actuator sample exactly at the 6.5° stop fails the strict bound and says so, without
-    an excess of "-0" (issue 11 item 8)."""
+    an excess of "-0"."""
     stop = load_requirements().deflection_rad
 
     def mutate(messages):

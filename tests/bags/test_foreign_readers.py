@@ -1,4 +1,4 @@
-"""A run bag as foreign tools see it (issue 11 item 6): Foxglove's ``mcap`` reader with the
+"""A run bag as foreign tools see it: Foxglove's ``mcap`` reader with the
 ``mcap-ros2-support`` decoder, which decodes every message from the ``ros2msg`` schema text
 stored in the file — none of our code, none of the installed message classes.
 

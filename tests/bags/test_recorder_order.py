@@ -1,4 +1,4 @@
-"""The recorder's reorder buffer (issue 11 item 7): whatever order the executor delivers the
+"""The recorder's reorder buffer: whatever order the executor delivers the
 topics in (each topic in its own order), the bag gets (log time, topic rank) order, and the
 same for every delivery order."""
 

@@ -196,7 +196,7 @@ def test_a_flipped_bit_is_found_by_the_chunk_crc(bag, tmp_path, capsys):
 
 
 def test_data_and_summary_crcs_are_written_and_checked(bag, tmp_path, capsys):
-    """Issue 11 item 6: the MCAP DataEnd and Footer records carry the data-section and
+    """The MCAP DataEnd and Footer records carry the data-section and
     summary CRC-32 (rosbags writes 0, "not computed"); a flipped bit in the summary (which no
     chunk CRC covers) makes `vega check` refuse the bag in one line."""
     import struct

@@ -142,8 +142,8 @@ def test_to_msg_fills_stamps_and_leaves_the_publishers_own_fields():
 
 
 def test_no_wall_clock_field_on_a_data_topic():
-    """Issue 11 item 7: every field of a data message comes from the flight (the record or
-    the publisher's constant frame_id); the controller's step time is on /vega/diagnostics."""
+    """Every field of a data message comes from the flight (the record or the publisher's
+    constant frame_id); the controller's step time is on /vega/diagnostics."""
     from vega_msgs.msg import StepDiagnostics, TvcCommand
 
     assert "compute_time_s" not in TvcCommand.get_fields_and_field_types()

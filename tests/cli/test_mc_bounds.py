@@ -1,7 +1,7 @@
 """``vega mc run`` / ``vega mc margins``: --runs and --workers have upper bounds, refused in one
-line (exit 2) before anything starts (adversarial pass of issue 11, docs/ADVERSARIAL.md: a
---runs of 10^12 listed every sample index in memory and was OOM-killed after 100 s without a
-word; --workers 100000 started a LocalCluster of that many processes)."""
+line (exit 2) before anything starts (docs/ADVERSARIAL.md): without them a --runs of 10^12
+lists every sample index in memory until the process is OOM-killed, without a word, and
+--workers 100000 starts a LocalCluster of that many processes."""
 
 import subprocess
 import sys
@@ -38,7 +38,7 @@ def test_the_bounds_themselves_are_accepted():
 
 def test_huge_runs_are_refused_at_once_in_a_real_process(tmp_path):
     """The real command line with --runs 10^12: refused within seconds, before any memory is
-    taken (it used to run out of memory after about 100 s)."""
+    taken (unbounded, it runs out of memory after about 100 s)."""
     t0 = time.monotonic()
     result = subprocess.run([sys.executable, "-m", "vega_cli.cli", "mc", "run", "--runs",
                              str(10**12), "--out", str(tmp_path / "c")],

@@ -1,7 +1,7 @@
 """``vega mc run|margins --resume DIR`` with a damaged or edited campaign.json: one line naming
-the file and the field, exit 2, nothing started (adversarial pass of issue 11,
-docs/ADVERSARIAL.md: malformed JSON, a missing field or a JSON list were internal errors with a
-traceback and exit 1, and an edited ``runs`` skipped the --runs bound)."""
+the file and the field, exit 2, nothing started (docs/ADVERSARIAL.md): malformed JSON, a
+missing field or a JSON list is no internal error with a traceback, and an edited ``runs`` does
+not skip the --runs bound."""
 
 import json
 

@@ -1,4 +1,4 @@
-"""``vega sil run`` refuses bad input while planning, before any node starts (issue 11 item 5):
+"""``vega sil run`` refuses bad input while planning, before any node starts:
 a seed beyond the int64 ``seed`` parameter, a ``--run-id`` with a control character, a scenario
 whose span runs past the flight-condition table, a scenario "file" that never ends. One line
 ``vega: error: …``, exit status 2, no run directory, no process."""
@@ -73,7 +73,7 @@ def test_run_id_with_a_control_character_is_refused(tmp_path, capsys, no_start, 
 def test_scenario_beyond_the_flight_condition_table_is_refused(tmp_path, capsys, no_start,
                                                                pd_table):
     """Today's nominal scenario with t_end past the table's end (the nonlinear plant node
-    used to fail after start, exit 1): refused on loading, naming the file and the field."""
+    would fail after start, exit 1): refused on loading, naming the file and the field."""
     end_s = float(FlightConditions.load().t_s[-1])
     text = scenario_path("nominal").read_text(encoding="utf-8")
     assert "t_end_s: 100.0" in text

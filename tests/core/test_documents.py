@@ -88,8 +88,8 @@ for call in (lambda: read_text(sys.argv[1], "scenario"),
 
 
 def test_a_fifo_is_refused_before_it_is_opened(tmp_path):
-    """Opening a FIFO blocks until a writer comes (adversarial pass of issue 11: `--scenario
-    FIFO`, `--table FIFO` and a node's `--params-file FIFO` hung for ever): refused in one
+    """Opening a FIFO blocks until a writer comes (`--scenario FIFO`, `--table FIFO` and a
+    node's `--params-file FIFO` would hang for ever; docs/ADVERSARIAL.md): refused in one
     line, as a scenario and as a controller table (in a child process with a time limit, so
     that a regression hangs the child, not the suite)."""
     fifo = tmp_path / "pipe.yaml"
@@ -116,8 +116,8 @@ def test_a_fifo_scenario_is_one_line_and_exit_2(tmp_path):
 @pytest.mark.parametrize("text", ["[" * 100_000, "a:\n" + "- " * 50_000 + "x\n",
                                   "{a: " * 100_000])
 def test_yaml_nested_too_deeply_is_one_line(text):
-    """A small file nested 100 000 levels deep made the YAML parser exhaust the stack
-    (RecursionError, a traceback, exit 1; adversarial pass of issue 11): one line now."""
+    """A small file nested 100 000 levels deep can make a YAML parser exhaust the stack
+    (RecursionError, a traceback, exit 1; docs/ADVERSARIAL.md): one line instead."""
     from vega_core.documents import parse_yaml
 
     with pytest.raises(BadFile) as err:

@@ -410,8 +410,8 @@ def test_a_future_stamp_does_not_block_the_measurements_after_it(gain_table):
 
 
 def test_a_repeated_stamp_is_refused_even_after_a_safe_zero(gain_table):
-    """Found by the property test: the newest stamp survives the reset of a SAFE_ZERO, so a
-    message repeated after it is not used."""
+    """The newest stamp survives the reset of a SAFE_ZERO, so a message repeated after it is
+    not used."""
     rt = ControllerRuntime(gain_table)
     assert rt.step(_m(10.02, 0.02, valid=False)).status == STATUS_SAFE_ZERO
     assert rt.step(_m(10.02, 0.02)).status == STATUS_SAFE_ZERO     # same stamp again

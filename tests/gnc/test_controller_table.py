@@ -1,4 +1,5 @@
-"""Controller-table export round trip and rejection of malformed files (one-line errors)."""
+"""Controller-table export round trip, rejection of malformed files (one-line errors), and the
+installed default table (the shipped file, byte for byte)."""
 
 import json
 
@@ -106,3 +107,18 @@ def test_rejects_unreadable_files(tmp_path):
     garbage.write_bytes(b"PK\x03\x04 this is not a zip archive")
     with pytest.raises(ControllerTableError, match="not a readable controller table"):
         load_controller_table(garbage)
+
+
+def test_the_default_table_is_the_installed_copy_of_the_shipped_tvc_controller():
+    """The installed file (ament share directory) against the repository's own copy, read
+    byte for byte (the path is not formed the way default_table_path forms it)."""
+    from pathlib import Path
+
+    from vega_gnc.controller_table import default_table_path
+
+    path = default_table_path()
+    shipped = (Path(__file__).resolve().parents[2] / "ros2_ws" / "src" / "vega_gnc" / "config"
+               / "tvc_controller.npz")
+    assert path.name == "tvc_controller.npz"
+    assert path.parent.name == "config" and "vega_gnc" in path.parts
+    assert path.read_bytes() == shipped.read_bytes()

@@ -12,6 +12,7 @@ import time
 import pyarrow.parquet as pq
 import pytest
 
+from load_scaling import budget_s
 from sil_flights import write_short_scenario
 from vega_cli import cli
 
@@ -28,6 +29,20 @@ def _rows(directory):
 
 def _mc(*args):
     return [sys.executable, "-m", "vega_cli.cli", "mc", "run", *map(str, args)]
+
+
+def _scheduler_address(path, proc, timeout_s):
+    """The address in a ``dask scheduler --scheduler-file`` once the file holds it: the
+    scheduler creates the file, then writes the JSON into it (not atomically), so the file
+    may exist and still be empty or cut."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            return json.loads(path.read_text())["address"]
+        except (OSError, ValueError, KeyError):
+            assert proc.poll() is None, f"dask scheduler ended with status {proc.returncode}"
+            assert time.monotonic() < deadline, f"no address in {path} after {timeout_s:g} s"
+            time.sleep(0.1)
 
 
 @pytest.fixture(scope="module")
@@ -69,10 +84,7 @@ def test_scheduler_and_worker_processes_on_loopback(reference, scenario, tmp_pat
                                       "--scheduler-file", str(sched_file)],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
     try:
-        deadline = time.monotonic() + 60
-        while not sched_file.exists() and time.monotonic() < deadline:
-            time.sleep(0.2)
-        address = json.loads(sched_file.read_text())["address"]
+        address = _scheduler_address(sched_file, procs[0], budget_s(60.0))
         assert address.startswith("tcp://127.0.0.1:")
         for _ in range(2):
             procs.append(subprocess.Popen(
@@ -112,10 +124,9 @@ def test_killed_campaign_resumes_without_reflying(long_scenario, tmp_path):
     samples are not flown again, the others are, and the resumed rows are the flights
     themselves (flown again here in process, without the campaign machinery).
 
-    Until 2026-11-27 this test flew the 1 s flights of the other tests and killed at the second
-    sample: under the soak's load (two suites on two cores) the client wrote all six in one
-    burst before the kill came (soak round 2 of the sixth session). With 60 s flights the other
-    five take ≈ 5 s of the worker's computing after the first is written."""
+    The flights are 60 s long so that the kill surely comes between the first sample written
+    and the last: the other five take ≈ 5 s of the worker's computing after the first. (With
+    1 s flights a loaded machine can write all six in one burst before the kill comes.)"""
     from vega_campaign.campaign import fly_sample
     from vega_campaign.campaign_run import SAMPLES_DIR
 

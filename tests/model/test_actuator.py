@@ -1,4 +1,7 @@
-"""TVC actuator: exact linear response, limiter law, β̈ consistency, robustness."""
+"""TVC actuator: exact linear response, limiter law, β̈ consistency, robustness, parameter
+and state checks, and the batch path ``run()`` against ``step()``.
+
+The limiter law at its boundaries, both signs: test_actuator_limiter.py."""
 
 import math
 
@@ -142,6 +145,75 @@ def test_invalid_parameters_rejected():
     with pytest.raises(ValueError):
         ActuatorParams(wn_radps=100.0, zeta=0.5, position_limit_rad=0.1,
                        rate_limit_radps=math.nan, dt_s=1e-3)
+
+
+
+def _kw(**over):
+    kw = dict(wn_radps=100.0, zeta=0.5, position_limit_rad=0.1, rate_limit_radps=0.3,
+              dt_s=1e-3)
+    kw.update(over)
+    return kw
+
+
+def test_damping_ratio_zero_is_accepted_nan_and_negative_are_not():
+    assert ActuatorParams(**_kw(zeta=0.0)).zeta == 0.0          # undamped: allowed (>= 0)
+    for bad in (math.nan, math.inf, -0.1):
+        with pytest.raises(ValueError, match="zeta"):
+            ActuatorParams(**_kw(zeta=bad))
+
+
+def test_advance_zero_steps_gives_empty_arrays_and_negative_is_refused(params):
+    act = TvcActuator(params)
+    beta, beta_dot, beta_ddot = act.advance(1.0 * DEG, 0)
+    assert beta.shape == beta_dot.shape == beta_ddot.shape == (0,)
+    with pytest.raises(ValueError):
+        act.advance(1.0 * DEG, -1)
+
+
+def test_reset_defaults_to_rest_at_zero(params):
+    act = TvcActuator(params)
+    act.advance(0.1 * DEG, 10)                  # moving: β, β̇, β̈ all non-zero
+    assert all(v != 0.0 for v in act.state)
+    act.reset()
+    assert act.state == (0.0, 0.0, 0.0) and act.command_rad == 0.0
+    assert act.step(math.nan) == (0.0, 0.0, 0.0)
+    act.reset(1.0)                               # beyond the stop: clamped, at rest
+    assert act.state == (params.position_limit_rad, 0.0, 0.0)
+    act.reset(-1.0)
+    assert act.state == (-params.position_limit_rad, 0.0, 0.0)
+
+
+def test_run_equals_step_by_step_and_reports_the_held_commands(params):
+    rng = np.random.default_rng(11)
+    cmds = list(rng.uniform(-12.0, 12.0, 400) * DEG) + [math.nan, math.inf, -math.inf] \
+        + [9.0 * DEG] * 600 + [-9.0 * DEG] * 1000 + [math.nan] * 5
+    a, b = TvcActuator(params, beta0_rad=1.0 * DEG), TvcActuator(params, beta0_rad=1.0 * DEG)
+    betas, rates, accels, helds = a.run(cmds)
+    ref = np.array([b.step(c) for c in cmds])
+    np.testing.assert_array_equal(np.array([betas, rates, accels]).T, ref)
+    assert a.state == b.state and a.command_rad == b.command_rad == -9.0 * DEG
+    # held command: the last finite one (a NaN right after the random block holds its last)
+    assert helds[400] == helds[399] == cmds[399] and helds[-1] == -9.0 * DEG
+    assert helds[:400] == cmds[:400]
+    # limits both ways in the batch path
+    assert max(betas) == params.position_limit_rad and min(betas) == -params.position_limit_rad
+    assert max(rates) == params.rate_limit_radps and min(rates) == -params.rate_limit_radps
+    # an empty batch changes nothing
+    before = a.state
+    assert a.run([]) == ([], [], [], []) and a.state == before
+
+
+def test_run_small_step_matches_analytic_response(params):
+    """The batch path is the exact ZOH response when unlimited (independent of step())."""
+    act = TvcActuator(params)
+    u = 0.1 * DEG
+    betas, rates, accels, _ = act.run([u] * 100)
+    for k in (0, 9, 36, 99):
+        t = params.dt_s * (k + 1)
+        b_ref, r_ref = analytic_step(u, t, params.wn_radps, params.zeta)
+        assert betas[k] == pytest.approx(b_ref, rel=1e-9)
+        assert rates[k] == pytest.approx(r_ref, rel=1e-9)
+        assert accels[k] == pytest.approx(1e4 * (u - b_ref) - 100.0 * r_ref, rel=1e-7)
 
 
 @pytest.mark.parametrize("zeta", [0.0, 0.2, 0.5, 0.9, 0.9999996, 1.0, 1.0000004, 1.3, 2.0])

@@ -2,8 +2,8 @@
 conditions interpolation, the custom-aerodynamics fallback), ``ModelParameters.scalars`` and
 ``model_parameters``: each against the scalar path ``ModelContext.parameters`` /
 ``ModelParameters.perturbed`` (separate code, tests/model/test_uncertainty_perturbation.py
-holds it to hand-derived values) or against values read by hand from the objects. Fast: this
-is the covering set of vega_model.parameters' mutation run (tools/mutation/targets.toml)."""
+holds it to hand-derived values) or against values read by hand from the objects. Kept fast:
+it is in vega_model.parameters' covering set of tools/mutation/targets.toml."""
 
 import dataclasses
 import math

@@ -4,17 +4,22 @@ one of the run's nodes.
 
 ``python rogue_publisher.py NODE TOPIC N [FIELD=VALUE ...]`` publishes N messages of the
 topic's type (:mod:`vega_bus.topics`) with the data QoS once a subscriber has matched (or
-after 30 s), ``seq`` counting from the ``seq`` given (default 0) and every other FIELD set
-(floats; ``header.stamp`` from ``stamp_ms``), prints ``published N`` and then stays on the bus
-until SIGTERM/SIGINT. N = 0: it only appears as a publisher.
+after 30 s, scaled by the load: tests/load_scaling.py), ``seq`` counting from the ``seq``
+given (default 0) and every other FIELD set (floats; ``header.stamp`` from ``stamp_ms``),
+prints ``published N`` and then stays on the bus until SIGTERM/SIGINT. N = 0: it only appears
+as a publisher.
 """
 
 import signal
 import sys
 import time
+from pathlib import Path
 
 
 def main(argv):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))    # tests/: load_scaling
+    from load_scaling import budget_s
+
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
@@ -33,7 +38,7 @@ def main(argv):
     executor.add_node(node)
     cls = topics.message_class(topic.type_name)
     pub = node.create_publisher(cls, topic.name, qos.data_qos())
-    deadline = time.monotonic() + 30.0
+    deadline = time.monotonic() + budget_s(30.0)
     while pub.get_subscription_count() == 0 and time.monotonic() < deadline and not stop:
         executor.spin_once(timeout_sec=0.05)
     seq = int(fields.pop("seq", 0))

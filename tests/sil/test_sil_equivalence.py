@@ -74,7 +74,7 @@ def test_sil_bag_is_the_in_process_simulation(flights, scenario, pd_table):
 def test_same_scenario_and_seed_same_bytes_and_file_order(flights):
     """Two runs of the same scenario and seed: the same raw bytes (as received, not
     re-serialised) for every message of every data topic and /clock, and the same file order
-    of every message, equal-time messages of different topics included (issue 11 item 7).
+    of every message, equal-time messages of different topics included.
     Only the payloads of ``/vega/diagnostics`` (wall clock) may differ, never their place."""
     a, b = (file_messages(bag) for bag in flights)
     assert [(t, n) for t, n, _ in a] == [(t, n) for t, n, _ in b]

@@ -162,9 +162,9 @@ def test_malformed_table_is_rejected_before_start(tmp_path, capsys, no_start):
 def test_table_that_does_not_stabilise_is_refused_before_start(tmp_path, capsys, no_start,
                                                                command, factor):
     """The shipped table with every output gain ×5 (well formed, finite, each discrete
-    controller as stable as before) — or ×1e300, absurd but finite (issue 11 item 5): its
-    nominal frozen loops are unstable inside the grid, so `vega sil run` and `vega mc run`
-    refuse it in one line, exit 2, nothing written."""
+    controller as stable as before) — or ×1e300, absurd but finite: its nominal frozen loops
+    are unstable inside the grid, so `vega sil run` and `vega mc run` refuse it in one line,
+    exit 2, nothing written."""
     import numpy as np
     from vega_gnc.controller_table import default_table_path
 

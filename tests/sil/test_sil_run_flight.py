@@ -344,8 +344,8 @@ def test_killed_recorder_bag_is_repaired(tmp_path, signal_scenario, pd_table):
 
 def test_a_recorder_that_ends_mid_flight_is_blamed(tmp_path, signal_scenario, pd_table):
     """The recorder stopped by SIGTERM mid-flight closes its bag and exits 0 — too early: the
-    run fails naming the recorder as having ended before the run was complete (before: the run
-    flew on without it and only the report failed)."""
+    run fails naming the recorder as having ended before the run was complete (it must not fly
+    on without it and leave the failure to the report)."""
     code, err, _ = _signal_mid_flight(["--scenario", signal_scenario, "--table", pd_table,
                                        "--out", tmp_path, "--realtime"],
                                       "recorder", 11.0, signal.SIGTERM)

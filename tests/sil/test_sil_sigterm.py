@@ -1,10 +1,10 @@
-"""SIGTERM at random points of a node's life ends it cleanly (issue 15 item 4).
+"""SIGTERM at random points of a node's life ends it cleanly.
 
 The node contract (vega_bus/shell.py): SIGINT/SIGTERM → one line ``NODE: stopped by SIGTERM``,
-exit 0, the bag closed — never a traceback (before the stop flag, rclpy's own handler shut
-the context down under a running wait: ``RCLError: context is not valid``). The one window
-where that cannot hold is before the node's code runs at all (interpreter start, import of the
-node's module): there SIGTERM's default action ends the process, status −15, nothing written.
+exit 0, the bag closed — never a traceback (rclpy's own handler would shut the context down
+under a running wait: ``RCLError: context is not valid``). The one window where that cannot
+hold is before the node's code runs at all (interpreter start, import of the node's module):
+there SIGTERM's default action ends the process, status −15, nothing written.
 The test tells the two apart from the process's caught-signal mask (``SigCgt`` in
 /proc/PID/status) read just before the signal is sent.
 
@@ -116,7 +116,7 @@ def test_sigterm_at_random_points_of_a_start(tmp_path):
 def short_scenario(tmp_path_factory):
     # 8 s flown in real time: the test's /clock watcher may see its first message seconds after
     # the flight began (DDS discovery under load), and the signals must still find it running
-    # (with 3 s the run was sometimes over before the signals: "nobody was stopped")
+    # (a 3 s flight can be over before the signals come: "nobody was stopped")
     return write_short_scenario(tmp_path_factory.mktemp("scenario"), "thesis",
                                 "thesis_sigterm", 10.0, FLIGHT_END_S)
 

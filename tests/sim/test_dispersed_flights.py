@@ -1,4 +1,4 @@
-"""Issue 14's regression flights, in process with the shipped (default) controller table: the
+"""Dispersed flights, in process with the shipped (default) controller table: the
 bending edges of thesis Table 2.3 and the worst case of `vega robust` fly 0–100 s stable, the
 bending amplitudes within a few times the nominal flight's and the nozzle never on its rate
 limit; the requirements pass. (The SIL flies the same numbers: tests/sil/test_sil_verdicts.py
@@ -13,7 +13,7 @@ from vega_sim.closed_loop import run_scenario
 from vega_sim.scenario import load_scenario
 
 AMPLITUDE_FACTOR = 5.0
-"""'Within a few times nominal' (issue 14), read as at most 5× the nominal flight's peak
+"""'Within a few times nominal', read as at most 5× the nominal flight's peak
 modal amplitude of the same mode (assumption)."""
 
 

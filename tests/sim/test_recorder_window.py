@@ -1,10 +1,10 @@
 """The recorder's back-pressure window against Fast DDS's shared-memory port (vega_bus.schedule):
 the messages of the frames the recorder has not reported yet must stay well inside the 512
-descriptors of a port, or a descheduled recorder loses samples (seen once in CI with the old
-100-frame window: 120 frames × ≈ 4.5 messages ≈ 540); and the report itself
+descriptors of a port, or a descheduled recorder loses samples (a 100-frame window lets
+120 frames × ≈ 4.5 messages ≈ 540 wait, more than a port holds); and the report itself
 (vega_bags.recorder.FramesRecorded) counts the frames held on every topic, so that one
-writer's deliveries held up stop the plant within the window (seen in a soak with the report
-counting the truth alone: 848 /vega/ins samples lost)."""
+writer's deliveries held up stop the plant within the window (a report counting the truth
+alone does not: the other writers' samples, e.g. /vega/ins, are then lost)."""
 
 from vega_bus.schedule import RECORDER_REPORT_FRAMES, RECORDER_WINDOW_FRAMES
 from vega_sim.run import load_run
@@ -78,7 +78,7 @@ def test_the_report_is_the_frames_held_on_every_topic_and_stops_with_a_silent_wr
     truth_alone = FramesRecorded({topics.TRUTH.name: expected[topics.TRUTH.name]}, 0, 1)
     for k in range(901):
         truth_alone.add(topics.TRUTH.name, k)
-    assert truth_alone.frames() == 901    # what counting the truth alone reported
+    assert truth_alone.frames() == 901    # a report counting the truth alone
 
 
 def test_a_finished_topic_no_longer_holds_the_report_and_all_done_is_the_truth_count():

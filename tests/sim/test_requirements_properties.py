@@ -1,4 +1,4 @@
-"""Property tests (hypothesis) of the requirement checks on generated series (issue 15 item 3).
+"""Property tests (hypothesis) of the requirement checks on generated series.
 
 For random time histories (finite, signs mixed, some beyond the bounds) the verdicts, margins
 and binding samples of :func:`vega_sim.requirements.evaluate_requirements` must agree with a

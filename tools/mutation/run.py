@@ -347,7 +347,8 @@ def percentages(total: int, counts: dict) -> tuple[float | None, float | None]:
     killed % = (killed + timeout) / (all − equivalent − no tests − not checked): of the
     mutants a covering test executed. strict % = (killed + timeout) / (all − equivalent − not
     checked): a "no tests" mutant (its function run by no covering test) counts as not killed,
-    the reading of issue 15's "≥ 90 % of the non-equivalent mutants killed"."""
+    the reading of the target "≥ 90 % of the non-equivalent mutants killed" (docs/TESTING.md,
+    Results)."""
     done = counts["killed"] + counts["timeout"]
     base = total - counts["equivalent"] - counts.get("not checked", 0)
     judged = base - counts["no tests"]

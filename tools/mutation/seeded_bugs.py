@@ -1,4 +1,5 @@
-"""The five bugs of issue 15 ("Why"), seeded one at a time: each must fail its named test.
+"""The bugs of the seeded-bug table in docs/TESTING.md, seeded one at a time: each must fail its
+named test.
 
 Each bug is a one-line source edit applied to a scratch copy of the packages
 (``build/mutation/_seeded/``, put first on PYTHONPATH; the checkout is never edited); the named
@@ -22,7 +23,7 @@ BUGS = [
     ("certificate accepts an indefinite closed-loop Lyapunov matrix",
      "offline/vega_lpv/certificate.py",
      "-np.linalg.eigvalsh(0.5 * (P_cl + P_cl.T))[0])", "-np.inf)",
-     ["tests/synthesis/test_certificate_negative.py::test_non_positive_lyapunov_matrix_is_rejected"]),
+     ["tests/lpv/test_certificate_negative.py::test_non_positive_lyapunov_matrix_is_rejected"]),
     ("negative command beyond -6.5 deg not flagged LIMITED",
      "vega_gnc/controller_runtime.py", "if abs(u) > lim:", "if u > lim:",
      ["tests/gnc/test_controller_runtime_limits.py::test_saturation_both_ways"]),
@@ -36,11 +37,11 @@ BUGS = [
     ("phase margin of the synthesis report given as 180 deg - PM",
      "offline/vega_lpv/verification.py", "margin = np.degrees(np.abs(np.angle(-L[k])))",
      "margin = 180.0 - np.degrees(np.abs(np.angle(-L[k])))",
-     ["tests/synthesis/test_margins_reference.py::test_open_loop_stable_textbook_loop"]),
+     ["tests/lpv/test_margins_reference.py::test_open_loop_stable_textbook_loop"]),
     ("bending peak of the synthesis report taken as the minimum in its window",
      "offline/vega_lpv/verification.py", "(w_radps < 1.2 * w0)].max()",
      "(w_radps < 1.2 * w0)].min()",
-     ["tests/synthesis/test_margins_reference.py::test_bending_peaks_are_the_maximum_in_each_window"]),
+     ["tests/lpv/test_margins_reference.py::test_bending_peaks_are_the_maximum_in_each_window"]),
     ("replay --check-controller IDENTICAL with more commands than the bag",
      "vega_bags/replay.py", "if len(recorded) != len(replayed):",
      "if len(recorded) > len(replayed):",
