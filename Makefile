@@ -2,7 +2,8 @@
 #
 #   make setup   .venv from requirements.txt, colcon build of ros2_ws, offline/ and cli/, `vega`
 #   make lint    ruff (lint, docstrings) and the package layering contracts (pyproject.toml)
-#   make test    `make lint`, then the whole pytest suite (sets up first)
+#   make check   `make lint`, then the fast tier of the suite: tests not marked slow (≤ 60 s)
+#   make test    `make lint`, then the whole pytest suite (sets up first; what .ci/run runs)
 #   make sil     fly the default SIL scenario into bags/ (sets up first; SIL_ARGS=...)
 #   make mc      the default Monte Carlo campaign: 852 dispersed flights of `nominal` on a Dask
 #                LocalCluster into bags/mc-<UTC time>/ (sets up first; MC_ARGS=..., e.g. --runs 100)
@@ -51,7 +52,7 @@ COLCON_FLAGS := --symlink-install \
 .PHONY: setup lint test sil clean distclean help
 
 help:
-	@sed -n '2,13s/^# \{0,1\}//p' $(firstword $(MAKEFILE_LIST))
+	@sed -n '2,14s/^# \{0,1\}//p' $(firstword $(MAKEFILE_LIST))
 
 setup: $(REQUIREMENTS_STAMP) $(WS_STAMP) $(OFFLINE_STAMP) $(WRAPPERS) $(KERNELS_STAMP)
 
@@ -115,6 +116,11 @@ lint: setup
 test: setup lint
 	cd $(ROOT) && $(VENV)/bin/vega-env python -m pytest tests $(PYTEST_ARGS)
 
+# The fast tier for everyday work (docs/TESTING.md): every test not marked slow (> 2 s).
+.PHONY: check
+check: setup lint
+	cd $(ROOT) && $(VENV)/bin/vega-env python -m pytest tests -m "not slow" -q $(PYTEST_ARGS)
+
 # SIL_ARGS: more `vega sil run` arguments, e.g. make sil SIL_ARGS="--scenario thesis --seed 2"
 sil: setup
 	$(VENV)/bin/vega sil run --out $(ROOT)/bags $(SIL_ARGS)
@@ -144,14 +150,16 @@ COPIES ?= 2
 soak: setup
 	cd $(ROOT) && $(VENV)/bin/vega-env python tools/soak.py --rounds $(ROUNDS) --copies $(COPIES)
 
-# Sign-off checks of a controller table (tools/design/verify_table.py): the SIL verdict
-# scenarios, `vega margins --dispersed`, `vega robust --no-mu`, an 852-flight campaign; exit 0
-# when every gated check passes. TABLE (default: the shipped table), VERIFY_ARGS appended,
-# e.g. VERIFY_ARGS="--mc-reference 757" (the flown table's own sign-off passes); 19.5 min on 2 quiet cores (2026-11-27)
+# Sign-off checks of a controller table (`vega verify`, docs/FLIGHT_DESIGN.md §6.5): the SIL
+# verdict scenarios, `vega margins --dispersed`, `vega robust --no-mu`, an 852-flight campaign;
+# exit 0 when every gated check passes; the record bags/verify-<UTC>/verify.json is what
+# `vega ship` installs a table with. TABLE (default: the shipped table), VERIFY_ARGS appended,
+# e.g. VERIFY_ARGS="--mc-reference 757" (the flown table's own sign-off passes, the least
+# `vega ship` accepts); about 20 min on 2 quiet cores
 TABLE ?= $(WS)/src/vega_gnc/config/tvc_controller.npz
 .PHONY: verify-design
 verify-design: setup
-	cd $(ROOT) && OPENBLAS_NUM_THREADS=1 $(VENV)/bin/vega-env python tools/design/verify_table.py \
+	cd $(ROOT) && OPENBLAS_NUM_THREADS=1 $(VENV)/bin/vega verify \
 	  $(TABLE) --out $(ROOT)/bags/verify-$$(date -u +%Y%m%dT%H%M%SZ) $(VERIFY_ARGS)
 
 clean:

@@ -1,6 +1,6 @@
 """Soak check of the test suite: N rounds, each running K copies of the whole suite at once
-(issue 15 item 4: "the whole suite passes 10 times in a row with two copies running at once
-on the 2-core machine").
+(the requirement of docs/TESTING.md, "The soak check": the whole suite passes 10 times in a row
+with two copies running at once on the 2-core machine).
 
 Usage:
     .venv/bin/vega-env python tools/soak.py [--rounds 10] [--copies 2] [--log FILE]

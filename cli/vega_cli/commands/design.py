@@ -1,25 +1,25 @@
 """``vega design``: tune the robust structured controller over the whole flight and export it.
 
 ``vega design --out FILE.npz`` runs :func:`vega_design.structured.design_flight`
-(docs/FLIGHT_DESIGN.md): differential evolution at the anchor times (lift-off, every 10 s,
+(docs/FLIGHT_DESIGN.md §4): differential evolution at the anchor times (lift-off, every 10 s,
 burn-out; in parallel, ``--workers``), parameters carried to a 2 s grid and re-tuned where
-they miss a requirement, then the table in the controller-table format (``design:
-structured``) and its JSON report (``FILE.json``). The product flies the committed copy,
+they miss a requirement, the tail-off tuned as one controller, the drift-rate gain scaled after
+max-Q (step 6), then the single-parameter repairs of the bending criterion at the dispersed
+corners (step 7, :mod:`vega_design.corner_repair`; ``--no-corner-repair`` leaves it out), and
+writes the table in the controller-table format (``design: structured``) and its JSON report
+(``FILE.json``). The product flies the committed copy,
 ``vega_gnc/config/tvc_controller.npz``; regenerate it with ``--out
-ros2_ws/src/vega_gnc/config/tvc_controller.npz`` (hours on 2 cores: with the 222-plant design
-set an anchor takes ≈ 10 min of one core, the 11 anchors ≈ 55 min; every finished tuning task
-is written to a journal, ``FILE.journal.jsonl`` next to ``--out`` or ``--journal``, and the
-same command started again after an interruption reuses it and gives the uninterrupted run's
-table — :mod:`vega_design.task_journal`;
-``--anchors-from TABLE`` reuses an earlier table's anchors and re-tunes only the grid;
-``--repair-from TABLE`` keeps every grid point of an earlier table that meets the current
-requirements and re-tunes the others; ``--tail-from TABLE`` keeps every grid point before the
-tail-off and re-tunes only the one tail-off controller, jointly over 86–100 s; ``--drift-from
-TABLE`` applies only step 6, the drift-rate gain after max-Q; ``--corner-repair-from TABLE``
-only step 7, the single-parameter repairs of the bending criterion at the dispersed corners,
-:mod:`vega_design.corner_repair`, which a full run applies last unless
-``--no-corner-repair``) and verify it with ``vega margins --dispersed`` and ``vega robust``.
-Exit 0, or 2 on bad input.
+ros2_ws/src/vega_gnc/config/tvc_controller.npz`` and verify it with ``vega margins
+--dispersed`` and ``vega robust``.
+
+A table is made from its inputs alone (the code, the vehicle data, the drift-gain schedule and
+the options), never from an earlier table. A run takes hours on 2 cores (with the 222-plant
+design set an anchor takes ≈ 10 min of one core, the 11 anchors ≈ 55 min), so every finished
+tuning task (steps 1–5) is written to a journal, ``FILE.journal.jsonl`` next to ``--out`` or
+``--journal FILE`` (:mod:`vega_design.task_journal`): the same command started again reuses
+it and gives the uninterrupted run's table. Steps 6 and 7 are not journalled: they are
+deterministic functions of the tuned grid points and are recomputed (step 6 a few minutes,
+step 7 ≈ 6–25 min on 2 cores, against hours for steps 1–5). Exit 0, or 2 on bad input.
 """
 
 from __future__ import annotations
@@ -63,15 +63,14 @@ def _run(args: argparse.Namespace) -> int:
     import json
     import time
 
-    import numpy as np
     from vega_model.parameters import default_context
 
     from vega_design.corner_repair import repair_design
     from vega_loops.margins import json_ready
     from vega_design.structured import (
-        DRIFT_GAINS_PATH, PARAMETERS, TAIL_OFF_HOLD_S, design_flight, load_drift_gains,
-        rescale_drift, retune_tail, write_structured_table,
+        DRIFT_GAINS_PATH, design_flight, load_drift_gains, write_structured_table,
     )
+    from vega_design.task_journal import TaskJournal
     # step 6 refuses a drift-rate scaling that loses vega robust's worst-case bending criterion
     from vega_analysis.robust import worst_case_bending_ok
 
@@ -80,28 +79,12 @@ def _run(args: argparse.Namespace) -> int:
         raise BadArgument(f"--maxiter {args.maxiter}: must be within 1..1000")
     if not 0 <= args.workers <= 64:
         raise BadArgument(f"--workers {args.workers}: must be within 0..64")
-    anchor_x = None
-    given = [o for o, v in (("--anchors-from", args.anchors_from),
-                            ("--repair-from", args.repair_from),
-                            ("--tail-from", args.tail_from),
-                            ("--drift-from", args.drift_from),
-                            ("--corner-repair-from", args.corner_repair_from)) if v]
-    if len(given) > 1:
-        raise BadArgument(f"{' and '.join(given)}: give one of them")
-    if args.journal and (args.tail_from or args.drift_from or args.corner_repair_from):
-        raise BadArgument(f"--journal with {given[0]}: only the tuning of a full run, "
-                          "--anchors-from or --repair-from is journalled")
     if args.journal and Path(args.journal).is_dir():
         raise BadArgument(f"--journal {args.journal}: is a directory")
-    tunes = not (args.tail_from or args.drift_from or args.corner_repair_from)
     if args.drift_gains and args.free_drift_gains:
         raise BadArgument("--drift-gains and --free-drift-gains: give one of them")
-    if (args.drift_gains or args.free_drift_gains) and not tunes:
-        raise BadArgument(f"{'--drift-gains' if args.drift_gains else '--free-drift-gains'} "
-                          f"with {given[0]}: only a full run, --anchors-from or --repair-from "
-                          "tunes")
     drift_gains, gains_record = None, None
-    if tunes and not args.free_drift_gains:
+    if not args.free_drift_gains:
         import hashlib
 
         gains = Path(args.drift_gains or DRIFT_GAINS_PATH)
@@ -109,90 +92,30 @@ def _run(args: argparse.Namespace) -> int:
         # what was read, not what the file holds hours later when the run ends
         gains_record = {"file": str(gains),
                         "sha256": hashlib.sha256(gains.read_bytes()).hexdigest()}
-    if args.no_corner_repair and (given and not args.anchors_from and not args.repair_from):
-        raise BadArgument(f"--no-corner-repair with {given[0]}: that option runs one step "
-                          "only, and never the corner repair (or it is the corner repair)")
-    source_path = (args.anchors_from or args.repair_from or args.tail_from or args.drift_from
-                   or args.corner_repair_from)
-    option = given[0] if given else None
-    if source_path:
-        from vega_gnc.controller_table import load_controller_table
-
-        source = load_controller_table(source_path)     # BadFile: one line, exit 2
-        meta = source.metadata
-        keys = ("anchors_s", "grid_times_s", "parameters_per_grid_time")
-        if source.design != "structured" or any(k not in meta for k in keys):
-            raise BadArgument(f"{option} {source_path}: not a structured design "
-                              "table (no tuned parameters in its metadata)")
-        by_time = dict(zip(meta["grid_times_s"], meta["parameters_per_grid_time"]))
-        grid = (args.repair_from or args.tail_from or args.drift_from
-                or args.corner_repair_from)
-        used = meta["grid_times_s"] if grid else meta["anchors_s"]
-        if any(t not in by_time or len(by_time[t]) != len(PARAMETERS) for t in used):
-            raise BadArgument(f"{option} {source_path}: its "
-                              f"{'grid points' if grid else 'anchors'} have no "
-                              f"{len(PARAMETERS)} tuned parameters in its metadata")
-        if args.tail_from and TAIL_OFF_HOLD_S not in by_time:
-            raise BadArgument(f"--tail-from {source_path}: no grid point at the tail-off "
-                              f"hold time {TAIL_OFF_HOLD_S:g} s")
-        if args.drift_from and "drift" in meta.get("solver", {}):
-            raise BadArgument(f"--drift-from {source_path}: its drift-rate gain was already "
-                              f"scaled ({meta['solver']['drift']}); scaling twice compounds")
-        anchor_x = {float(t): by_time[t] for t in used}
     start = time.perf_counter()
     context = default_context()
-    kwargs = {"anchors_s": sorted(anchor_x)} if args.repair_from else {}
-    if args.tail_from or args.drift_from or args.corner_repair_from:
-        tuning = {k: v for k, v in meta.get("solver", {}).items()
-                  if k not in ("method", "scipy")}
-    if args.corner_repair_from:
-        from vega_design.structured import StructuredDesign
+    journal_path = Path(args.journal) if args.journal else out.with_suffix(".journal.jsonl")
+    journal = TaskJournal(journal_path)              # BadFile (other code, damaged): exit 2
+    print(f"journal {journal_path}: {len(journal)} finished tasks"
+          + (" (reused where the same task comes again)" if len(journal) else ""),
+          flush=True)
+    import threading
 
-        times = sorted(anchor_x)
-        design = StructuredDesign(
-            np.array(times), np.array([context.parameters(t).v_mps for t in times]),
-            np.array([anchor_x[t] for t in times], dtype=float), [None] * len(times),
-            tuple(meta["anchors_s"]), tuning)
+    stop = threading.Event()
+    threading.Thread(target=heartbeat, args=(journal_path, stop), daemon=True).start()
+    try:
+        design = design_flight(context, seed=args.seed, maxiter=args.maxiter,
+                               workers=args.workers, drift_worst_case=worst_case_bending_ok,
+                               journal=journal, drift_gains=drift_gains,
+                               progress=lambda line: print(line, flush=True))
+    finally:
+        stop.set()
+    if gains_record is not None:
+        design.tuning["drift_gains"] = {**design.tuning["drift_gains"], **gains_record}
+    if not args.no_corner_repair:
         design = repair_design(context, design, workers=args.workers,
                                worst_case=worst_case_bending_ok,
                                progress=lambda line: print(line, flush=True))
-    elif args.drift_from:
-        design = rescale_drift(context, sorted(anchor_x),
-                               [anchor_x[t] for t in sorted(anchor_x)], meta["anchors_s"],
-                               tuning, progress=lambda line: print(line, flush=True),
-                               worst_case=worst_case_bending_ok)
-    elif args.tail_from:
-        design = retune_tail(context, sorted(anchor_x), [anchor_x[t] for t in sorted(anchor_x)],
-                             meta["anchors_s"], tuning, seed=args.seed + 4000,
-                             progress=lambda line: print(line, flush=True))
-    else:
-        from vega_design.task_journal import TaskJournal
-
-        journal_path = (Path(args.journal) if args.journal
-                        else out.with_suffix(".journal.jsonl"))
-        journal = TaskJournal(journal_path)          # BadFile (other code, damaged): exit 2
-        print(f"journal {journal_path}: {len(journal)} finished tasks"
-              + (" (reused where the same task comes again)" if len(journal) else ""),
-              flush=True)
-        import threading
-
-        stop = threading.Event()
-        threading.Thread(target=heartbeat, args=(journal_path, stop), daemon=True).start()
-        try:
-            design = design_flight(context, seed=args.seed, maxiter=args.maxiter,
-                                   workers=args.workers, anchor_x=anchor_x,
-                                   repair=bool(args.repair_from), **kwargs,
-                                   drift_worst_case=worst_case_bending_ok, journal=journal,
-                                   drift_gains=drift_gains,
-                                   progress=lambda line: print(line, flush=True))
-        finally:
-            stop.set()
-        if gains_record is not None:
-            design.tuning["drift_gains"] = {**design.tuning["drift_gains"], **gains_record}
-        if not args.no_corner_repair:
-            design = repair_design(context, design, workers=args.workers,
-                                   worst_case=worst_case_bending_ok,
-                                   progress=lambda line: print(line, flush=True))
     table = write_structured_table(out, design, context)
     report = {"table": str(out), "run_time_s": time.perf_counter() - start,
               "grid_times_s": design.grid_times_s, "grid_v_mps": design.grid_v_mps,
@@ -214,41 +137,21 @@ def register(subparsers) -> None:
         "design", help="tune and export the robust structured controller (0-100 s)",
         description="Tune the scheduled structured TVC controller against the margin and "
                     "robust-stability requirements (docs/FLIGHT_DESIGN.md) and export it as "
-                    "a controller table.")
+                    "a controller table, from its inputs alone (hours on 2 cores). The same "
+                    "command started again after an interruption resumes from its journal.")
     p.add_argument("--out", required=True, metavar="FILE.npz", help="output table (.npz)")
     p.add_argument("--seed", type=int, default=1, help="seed of the searches (default 1)")
     p.add_argument("--maxiter", type=int, default=80,
                    help="differential-evolution generations per anchor (default 80)")
-    p.add_argument("--repair-from", metavar="TABLE",
-                   help="keep every grid point of an earlier structured table that meets every "
-                        "requirement of the current design set, re-tune the others from "
-                        "scratch, then check between grid points (a repair after a "
-                        "requirement was added)")
-    p.add_argument("--anchors-from", metavar="TABLE",
-                   help="reuse the anchor times' parameters of an earlier structured table "
-                        "(skips their from-scratch search and re-tunes only the grid)")
-    p.add_argument("--tail-from", metavar="TABLE",
-                   help="keep every grid point of an earlier structured table before the "
-                        "tail-off hold time (86 s) and re-tune only the one tail-off "
-                        "controller, jointly over 86-100 s (≈ 15 min on one core)")
-    p.add_argument("--drift-from", metavar="TABLE",
-                   help="keep every grid point of an earlier structured table and apply only "
-                        "the last design step, the drift-rate gain scaled after max-Q where "
-                        "the scaled point still meets every requirement (docs/FLIGHT_DESIGN.md "
-                        "section 4, step 6; a few minutes)")
-    p.add_argument("--corner-repair-from", metavar="TABLE",
-                   help="keep every grid point of an earlier structured table and apply only "
-                        "step 7: single-parameter repairs where the flown controller misses "
-                        "the bending criterion at a dispersed corner of vega margins "
-                        "--dispersed (docs/FLIGHT_DESIGN.md section 4; ~6 min on 2 cores "
-                        "plus ~0.5 min per repaired point)")
     p.add_argument("--no-corner-repair", action="store_true",
-                   help="a full run (or --anchors-from / --repair-from) without step 7")
+                   help="leave out step 7, the single-parameter repairs of the bending "
+                        "criterion at the dispersed corners of vega margins --dispersed "
+                        "(docs/FLIGHT_DESIGN.md section 4): the table of steps 1-6")
     p.add_argument("--journal", metavar="FILE",
                    help="journal of finished tuning tasks (default: the --out file with the "
-                        "suffix .journal.jsonl): a run interrupted and started again with the "
-                        "same journal reuses them and gives the uninterrupted run's table "
-                        "(full runs, --anchors-from, --repair-from)")
+                        "suffix .journal.jsonl): the same command started again with the same "
+                        "journal reuses them and gives the uninterrupted run's table; a "
+                        "journal written by other design code is refused")
     p.add_argument("--workers", type=int, default=2,
                    help="processes for the anchors (default 2; 0 = in this process)")
     p.add_argument("--drift-gains", metavar="FILE.yaml",
@@ -256,6 +159,6 @@ def register(subparsers) -> None:
                         "offline/vega_design/data/drift_gains.yaml; docs/FLIGHT_DESIGN.md "
                         "section 4, 'The drift gains')")
     p.add_argument("--free-drift-gains", action="store_true",
-                   help="tune the drift gains with the other parameters (the tables made "
-                        "before 2026-11-27, eighth session)")
+                   help="tune the drift gains with the other parameters instead of holding "
+                        "them at a schedule")
     p.set_defaults(func=_run)

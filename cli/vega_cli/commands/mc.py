@@ -6,6 +6,11 @@ controller at frozen times for N dispersed plants (the same samples), with the s
 ``vega mc rerun DIR --sample I [--out RUNDIR]`` flies that sample through the ROS 2 nodes (``vega
 sil run`` on the sample's scenario) and checks that its bag's metrics equal the campaign row.
 
+``vega mc compare A B [--out FILE.json] [--plot FILE.png]`` compares two complete campaigns
+of the same samples flight by flight (:mod:`vega_campaign.compare`): passes, the flights B lost
+and won, McNemar's exact p; exit 0 after the report, 2 for campaigns that are not complete or do
+not fly the same samples.
+
 ``vega mc run --scenario NAME|PATH --runs N [--dispersions FILE] [--seed S] [--out DIR]
 [--table FILE] [--workers K | --scheduler ADDRESS] [--resume DIR]`` flies N dispersed copies of
 the scenario in process on a Dask cluster (a LocalCluster of K worker processes on 127.0.0.1 by
@@ -257,8 +262,30 @@ def _margins(args: argparse.Namespace) -> int:
                           "results.parquet, summary.json, summary.md")
 
 
+def _compare(args: argparse.Namespace) -> int:
+    """``vega mc compare A B``: two campaigns of the same samples, flight by flight."""
+    from pathlib import Path
+
+    from vega_campaign.compare import (check_same_samples, compare, load_campaign, plot,
+                                       report_lines)
+
+    dir_a, dir_b = Path(args.a), Path(args.b)
+    inputs_a, a = load_campaign(dir_a)
+    inputs_b, b = load_campaign(dir_b)
+    check_same_samples(inputs_a, inputs_b, dir_a, dir_b)
+    report = compare(a, b)
+    report["a"] = {"dir": str(dir_a), "table_sha256": inputs_a.get("table_sha256")}
+    report["b"] = {"dir": str(dir_b), "table_sha256": inputs_b.get("table_sha256")}
+    print("\n".join(report_lines(report, inputs_a.get("seed"))))
+    if args.out:
+        Path(args.out).write_text(json.dumps(report, indent=1) + "\n")
+    if args.plot:
+        plot(a, b, report, Path(args.plot), (dir_a.name, dir_b.name))
+    return 0
+
+
 def _no_action(args) -> int:
-    raise BadArgument("vega mc: choose an action (run, margins, rerun)")
+    raise BadArgument("vega mc: choose an action (run, margins, rerun, compare)")
 
 
 def _campaign_arguments(parser, what: str, default_out: str) -> None:
@@ -285,7 +312,7 @@ def _campaign_arguments(parser, what: str, default_out: str) -> None:
 
 
 def register(subparsers) -> None:
-    """Add the ``mc`` sub-command (actions ``run``, ``margins``, ``rerun``)."""
+    """Add the ``mc`` sub-command (actions ``run``, ``margins``, ``rerun``, ``compare``)."""
     parser = subparsers.add_parser(
         "mc", help="Monte Carlo dispersion campaigns on Dask",
         description="Fly dispersed copies of a scenario in process on a Dask cluster and "
@@ -321,3 +348,18 @@ def register(subparsers) -> None:
     rerun.add_argument("--out", default=None, metavar="RUNDIR",
                        help="where the scenario and the run go (default: DIR/reruns)")
     rerun.set_defaults(func=_rerun)
+    comp = actions.add_parser(
+        "compare", help="compare two campaigns of the same samples flight by flight",
+        description="Pair the samples of two complete campaigns with the same scenario, "
+                    "dispersions, seed and runs (A the reference, B the candidate): passes, "
+                    "the flights B lost and won with their requirements and Qα ratios, "
+                    "McNemar's exact p on those, the median Qα-ratio change. Exit 0 after the "
+                    "report, 2 for campaigns that are not complete or do not fly the same "
+                    "samples.")
+    comp.add_argument("a", metavar="A", help="reference campaign directory")
+    comp.add_argument("b", metavar="B", help="candidate campaign directory")
+    comp.add_argument("--out", default=None, metavar="FILE.json",
+                      help="also write the comparison as JSON")
+    comp.add_argument("--plot", default=None, metavar="FILE.png",
+                      help="also write the Qα-ratio scatter, B against A")
+    comp.set_defaults(func=_compare)
