@@ -3,7 +3,7 @@
 Usage: .venv/bin/vega-env python bench/bench_inprocess.py [--old REV] [--repeat N]
        [--samples K] [--runs R] [--no-scaling | --scaling-only]
 
-One run measures, in this order (issue 12 item 5):
+One run measures, in this order (targets: docs/MONTE_CARLO.md §8):
 
 1. **Old vs new, as ratios.** The old code is a git worktree of ``--old`` (default: the parent
    of the commit that added ``vega_model/nonlinear_kernel.py``, i.e. the code before the

@@ -4,8 +4,8 @@ Usage: .venv/bin/vega-env python bench/bench_mc.py [RUNS] [SPAN_S]
 Flies the same RUNS dispersed samples (default 16) of `nominal` cut to its first SPAN_S seconds
 (default 30, from lift-off) on a LocalCluster of 1 and then 2 worker processes, in one run, and
 prints flights per second, simulated seconds per wall second per worker, and the 2/1 ratio
-(issue 12 asks for >= 1.8 and >= 200x real time per core). Campaign directories go to a
-temporary folder.
+(targets >= 1.8 and >= 200x real time per core, docs/MONTE_CARLO.md §8). Campaign directories
+go to a temporary folder.
 """
 
 import sys

@@ -8,19 +8,21 @@ Prints the wall time of the weighted plants, of stage 1 (min γ) and stage 2 (ba
 rate-bounded synthesis on the thesis grid with the shipped weights (solver time and iterations
 as Clarabel reports them), and with --full-chain the per-stage times of `vega synth`
 (verification and the thesis-scenario simulations included) writing to a temporary file.
-Targets (issue 10): synthesis ≤ 60 s, `vega synth` ≤ 120 s on the 2-core machine. Timings on a
-machine shared with other processes are noisy: the load average is printed with them.
+Targets (docs/SYNTHESIS.md §8): synthesis ≤ 60 s, `vega synth` ≤ 120 s on the 2-core machine.
+Timings on a machine shared with other processes are noisy: the load average is printed with
+them.
 
---compare runs the path before issue 10 (pipeline.SOLVER_PATHS["clarabel"]: Clarabel, stage-1
-LMIs in the 3×3-block form) and the IPM path (SOLVER_PATHS["ipm"]: the in-house interior point
-for stage 1 on the Schur-reduced LMIs and for stage 2 on the self-dual embedding) back to back on
-the same plant and prints the ratios (old / new) per stage, γ_min and the certificates; with
---full-chain also the whole `vega synth` chain both ways (old: Clarabel, stages one after the
-other; new: IPM, LTI bounds and quadratic synthesis in a second process), with the dense
-certificate. --path picks the new path (default ipm; hybrid = Clarabel stage 1, IPM stage 2,
-the path for the 26-point grid, docs/SYNTHESIS.md §8). --points gives other grid times (e.g.
-30,40,50 for the 3-point problem of issue 10), --grid a named grid (the chain runs on the grid
-named by --grid, default refined); --chain-only skips the synthesis comparison.
+--compare runs the "clarabel" path (pipeline.SOLVER_PATHS["clarabel"], the path of the shipped
+lpv_controller.npz: Clarabel, stage-1 LMIs in the 3×3-block form) and the IPM path
+(SOLVER_PATHS["ipm"]: the in-house interior point for stage 1 on the Schur-reduced LMIs and for
+stage 2 on the self-dual embedding) back to back on the same plant and prints the ratios
+(old / new) per stage, γ_min and the certificates; with --full-chain also the whole `vega synth`
+chain both ways (old: Clarabel, stages one after the other; new: IPM, LTI bounds and quadratic
+synthesis in a second process), with the dense certificate. --path picks the new path (default
+ipm; hybrid = Clarabel stage 1, IPM stage 2, the path for the 26-point grid, docs/SYNTHESIS.md
+§8). --points gives other grid times (e.g. 30,40,50 for the 3-point problem of
+docs/SYNTHESIS.md §8), --grid a named grid (the chain runs on the grid named by --grid, default
+refined); --chain-only skips the synthesis comparison.
 """
 
 import os

@@ -1,5 +1,5 @@
-"""Mixed-μ upper bound of the flown frozen loops over the parametric uncertainty set (issue 14
-item 3b).
+"""Mixed-μ upper bound of the flown frozen loops over the parametric uncertainty set
+(docs/ROBUST_ANALYSIS.md §2.3).
 
 Per frozen flight time, the loop of :mod:`vega_loops.margins` (flown discrete controller
 on the *nominal* schedule, hold, delay, TVC actuator, launcher of ``vega linearize``; loop broken

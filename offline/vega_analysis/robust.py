@@ -1,4 +1,4 @@
-"""Robust analysis of the flown controller over the whole uncertainty set (issue 14 item 3).
+"""Robust analysis of the flown controller over the whole uncertainty set (docs/ROBUST_ANALYSIS.md).
 
 Per frozen flight time, with the flown controller on the *nominal* schedule (it knows only the
 nominal velocity of that time) and the loop of :mod:`vega_loops.margins` (exact
@@ -379,7 +379,8 @@ SUMMARY_KEYS = ("nominal_disk_alpha", "worst_disk_alpha", "worst_disk_gm_db", "w
 
 
 def summarise(rows: Sequence[Mapping]) -> dict:
-    """Worst value and where per figure, the verdicts of issue 14's Done-when."""
+    """Worst value and where per figure, and the verdicts of the requirement (robust stability,
+    bending criteria over the dispersed set; docs/ROBUST_ANALYSIS.md §1)."""
     out: dict = {"n_times": len(rows)}
     for key in SUMMARY_KEYS:
         pick = max if key == "max_radius" else min

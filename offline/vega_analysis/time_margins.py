@@ -1,4 +1,4 @@
-"""Time-domain margins in the nonlinear in-process closed loop (issue 14 item 4).
+"""Time-domain margins in the nonlinear in-process closed loop (docs/ROBUST_ANALYSIS.md §2.5).
 
 Per flight segment, the loop gain is scaled, and separately a delay is added, at the actuator
 input inside the segment's window until the flight goes unstable (NASA SLS practice: Kiefer

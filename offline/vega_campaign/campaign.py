@@ -65,8 +65,9 @@ METRICS = {
     "max_abs_bending_q2": "modal",
     "rate_limited_s": "s (nozzle at >= 99 % of its rate limit)",
 }
-# A flight is STABLE when no bending mode and no nozzle loop runs away. Assumption (issue 14:
-# "bending amplitudes within a few times nominal and the nozzle never riding its rate limit"):
+# A flight is STABLE when no bending mode and no nozzle loop runs away (thesis Table 3.1 does
+# not catch a bending limit cycle, docs/MONTE_CARLO.md §2). Assumption: "bending amplitudes
+# within a few times nominal and the nozzle never riding its rate limit", i.e.
 # |q1| <= 1.0 and |q2| <= 0.1 modal units, about ten times the nominal flight's 0.08 and
 # 0.0095, and at most 0.5 s in total at the rate limit.
 STABILITY_LIMITS = {"max_abs_bending_q1": 1.0, "max_abs_bending_q2": 0.1,

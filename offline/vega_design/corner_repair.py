@@ -3,38 +3,39 @@ dispersed corners.
 
 Why (docs/FLIGHT_DESIGN.md §4, "Step 7"): steps 1–6 (:func:`.structured.design_flight`) tune
 every grid point on its *design set* (190–222 plants), but the table is verified on the 641
-dispersed corners of `vega margins --dispersed` at every 0.5 s (:func:`.margins.sweep`), by
-the flown controller interpolated between grid points. On 2026-11-27 that verification found
-the exact bending criterion missed at a few times, and three single-parameter hand edits
-(`tools/design/set_parameter.py`: a deeper first notch at 82 and 43 s, a lower first low-pass
-at 34.5 s) removed the misses. This step is that practice written down as a rule, so that one
-`vega design` run makes a table the verification passes, with no hand edit:
+dispersed corners of `vega margins --dispersed` at every 0.5 s
+(:func:`vega_loops.margins.sweep`), by the flown controller interpolated between grid points.
+That verification can find the exact bending criterion missed at a few times where the design
+sets meet it; single-parameter edits of the nearest grid point (a deeper first notch, a lower
+first low-pass) remove such misses. This step makes those edits by a rule, so that one `vega
+design` run makes a table the verification passes, with no hand edit:
 
 1. **Check.** Between every two neighbouring grid points, the flown controller at every
    time of the 0.5 s grid (:func:`.structured.worst_case_times`; the first grid time and the
    times before it too: from 0 s the first point's controller flies alone),
-   at every corner of :func:`.margins.dispersed_corners`. A *miss* is a (time, corner,
-   criterion) where the loop is unstable or a mode misses :func:`.margins.bending_ok`
+   at every corner of :func:`vega_loops.margins.dispersed_corners`. A *miss* is a (time,
+   corner, criterion) where the loop is unstable or a mode misses
+   :func:`vega_loops.margins.bending_ok`
    (≤ −6 dB, or phase-stabilised with ≥ 6 dB / 30° in its band: the heritage criterion of
    the margin table).
 2. **Candidates.** For a grid point next to a missed time, one parameter moved at a time
-   (:data:`EDITS`, chosen from the hand edits and what they tried: the notch made deeper
+   (:data:`EDITS`, sized on the hand edits of docs/FLIGHT_DESIGN.md §4: the notch made deeper
    (its numerator damping × 0.85 or × 0.7), the low-pass corner lowered by 3.4 % or 6.7 %
    (0.015 or 0.03 in log10), the notch centre moved by ∓ 0.02 of the mode frequency), for the
    mode that is missed.
 3. **Acceptance**, all of:
    * inside the parameter's search box;
    * no requirement miss added on the design set of the point, nor of the flown controller
-     midway to either neighbour (what `set_parameter.py` checks,
-     :func:`.structured.requirement_misses` component-wise no larger);
+     midway to either neighbour (:func:`.structured.requirement_misses` component-wise no
+     larger);
    * over the point's two intervals, at every 0.5 s time and every corner, the set of misses
      strictly smaller and no new one (a corner that passed keeps passing);
    * with ``worst_case`` (normally :func:`vega_analysis.robust.worst_case_bending_ok`, as
      step 6 takes it): `vega robust`'s worst case keeps the bending criterion wherever it met
      it before the edit.
    Among the accepted candidates the one with the fewest misses left wins, then the one whose
-   formerly missed rows keep the largest distance to the criterion (:func:`bending_slack`:
-   the hand choice of 2026-11-27 took "the largest distance to the requirement").
+   formerly missed rows keep the largest distance to the criterion (:func:`bending_slack`,
+   the rule a person applies choosing among edits by hand).
 4. Points are taken in order of their number of misses, for at most :data:`MAX_ROUNDS` rounds;
    what is left is reported, not hidden.
 
@@ -43,13 +44,12 @@ that remove a miss there get the full check (all corners of both intervals). The
 (from 86 s, one controller held over several grid points, the 86 s point included) is edited
 as one (:func:`units_of`): an edit moves the parameter at every grid point of the hold, its
 full check covers every interval of the tail-off and the one into it, its design-set check
-every grid time of the hold and every midpoint. Until 2026-12-02 the hold was checked but not
-edited; the second from-scratch run (`design_runs/seed1-scheduled/`) then left 9 misses there
-(mode 1 at −5.93 dB at four corners at 86 and 86.5 s, mode 2 at one corner at 100 s), which a
-deeper second notch or a lower second low-pass removes. Cost on two cores: the check of the
-whole flight ≈ 6 min at load ≈ 1 (as `vega margins --dispersed`), then ≈ 0.5 min per
-repaired point; the hold (32 times from 84.5 to 100 s) took ≈ 8.5 min on 2026-12-02 (1 383 s
-in all, 870 s of them the check, beside a verification: not a timing figure).
+every grid time of the hold and every midpoint (the hold can miss the criterion too: mode 1 at
+−5.93 dB at 86 and 86.5 s, mode 2 at 100 s, which a deeper second notch or a lower second
+low-pass removes; docs/FLIGHT_DESIGN.md §4). Cost on two cores: the check of the whole flight
+≈ 6 min at load ≈ 1 (as `vega margins --dispersed`), then ≈ 0.5 min per repaired point; the
+hold (32 times from 84.5 to 100 s) ≈ 8.5 min (measured beside a verification, 1 383 s in all,
+870 s of them the check: an order of magnitude, not a timing figure).
 """
 
 from __future__ import annotations
@@ -84,8 +84,9 @@ EDITS = (
     ("notch2_ratio", "add", -0.02, 2),
     ("notch2_ratio", "add", +0.02, 2),
 )
-"""The candidate edits (assumption: the sizes of the hand edits of 2026-11-27 — notch1_zeta_num
-0.0482 → 0.035 (× 0.73) at 43 s, 0.0467 → 0.040 (× 0.86) at 82 s, log10_lp1_radps 1.184 → 1.17
+"""The candidate edits (assumption: the sizes of the hand edits recorded in ``solver.edits`` of
+tests/data/tvc_controller_2026-11-27.npz, docs/FLIGHT_DESIGN.md §4 — notch1_zeta_num 0.0482 →
+0.035 (× 0.73) at 43 s, 0.0467 → 0.040 (× 0.86) at 82 s, log10_lp1_radps 1.184 → 1.17
 (−0.014) at 34.5 s; notch1_ratio −0.02 was tried there by hand — bracketed; small enough that
 the rigid-body margins, which every grid point holds with ≥ 0.3 dB / 1° of design margin, are
 checked rather than expected to move)."""
@@ -100,7 +101,8 @@ MIN_STEP = 1e-4
 
 
 def bending_slack(row: Mapping, mode: int, req: Mapping = REQUIREMENTS) -> float:
-    """Distance of mode ``mode`` to :func:`.margins.bending_ok` in dB-equivalents (≥ 0 passes).
+    """Distance of mode ``mode`` to :func:`vega_loops.margins.bending_ok` in dB-equivalents
+    (≥ 0 passes).
 
     A gain-stabilised mode (peak ≤ −6 dB): −6 dB − peak, the gain it may still gain (its
     in-band GM and PM are infinite when it has no crossover there: no distance to read).
@@ -257,9 +259,9 @@ def repair_corner_bending(context, done: Mapping[float, tuple],
     [(t, corner, criterion), ...], "corners": n}``.
 
     ``until_s`` is where the tail-off hold starts (:func:`units_of`: the grid points from it on
-    are edited as one). ``corner_ids`` (default every corner of :func:`.margins.
-    dispersed_corners`) and ``rows`` (the check of step 7.1 already made, left grid time →
-    rows) exist for tests and re-runs."""
+    are edited as one). ``corner_ids`` (default every corner of
+    :func:`vega_loops.margins.dispersed_corners`) and ``rows`` (the check of step 7.1 already
+    made, left grid time → rows) let a test run the step on a few corners or reuse a check."""
     from vega_model.uncertainty import UncertaintySet
 
     uset = UncertaintySet.from_vehicle(context.vehicle)
@@ -400,9 +402,9 @@ def repair_design(context, design: "S.StructuredDesign", workers: int = 2,
                   worst_case: Callable[[object, object, float], bool] | None = None,
                   progress: Callable[[str], None] | None = None) -> "S.StructuredDesign":
     """A whole design through step 7 (:func:`repair_corner_bending`, every corner): ``vega
-    design`` runs it after steps 1–6, ``vega design --corner-repair-from TABLE`` on an earlier
-    table. The tuning record gets the step's record appended to ``corner_repair`` (a list: one
-    entry per application) and ``how`` per grid point."""
+    design`` runs it after steps 1–6 (unless ``--no-corner-repair``). The tuning record gets
+    the step's record appended to ``corner_repair`` (a list, one entry per application: the
+    format of the tables' ``solver.corner_repair``) and ``how`` per grid point."""
     from vega_model.uncertainty import UncertaintySet
 
     uset = UncertaintySet.from_vehicle(context.vehicle)

@@ -1,6 +1,6 @@
 """Scheduled structured TVC controller, tuned for robustness over the uncertainty set.
 
-Why (issues 9 and 14, docs/FLIGHT_DESIGN.md): the LPV table of :mod:`.pipeline` phase-
+Why (docs/FLIGHT_DESIGN.md): the LPV table of :mod:`vega_lpv.pipeline` phase-
 stabilises the first bending mode with no frequency robustness and holds PM ≈ 20° at max-Q.
 This module designs the controller the flight software flies by default: a fixed structure
 per flight time, tuned against the requirements themselves on exact sampled-data loops of
@@ -12,16 +12,16 @@ Structure (per grid point; inputs the four INS measurements, output β_cmd):
 
 LP = ω²/(s² + 2ζωs + ω²) low-passes, N = (s² + 2ζ_n ω s + ω²)/(s² + 2ζ_d ω s + ω²) notches
 near the nominal bending frequencies. Order 8, discretised by Tustin at the controller rate
-(as :func:`.export.write_controller_table` does for every table). Measurement sign +1: with
-the model's conventions (β > 0 gives θ̈ < 0) the stabilising feedback is u = +k_θ θ + k_θ̇ θ̇.
+(as :func:`vega_loops.export.write_controller_table` does for every table). Measurement sign
++1: with the model's conventions (β > 0 gives θ̈ < 0) the stabilising feedback is u = +k_θ θ + k_θ̇ θ̇.
 
 Tuning (:func:`tune_point`): differential evolution, then a local polish, on a cost that is
 the requirements written as penalties (every loop stable, nominal heritage margins, bending
 criteria at every dispersed bending frequency and shape) plus the objectives (the worst
 dispersed rigid-body modulus margin, the nominal modulus margin, the crossover). The loops
-are those of :mod:`.margins` (exact hold + delay, the discrete controller as flown), on a
-design frequency grid; :func:`.margins.sweep` verifies the exported table independently on
-its own, denser grid.
+are those of :mod:`vega_loops.margins` (exact hold + delay, the discrete controller as flown),
+on a design frequency grid; :func:`vega_loops.margins.sweep` verifies the exported table
+independently on its own, denser grid.
 """
 
 from __future__ import annotations
@@ -71,23 +71,24 @@ UPPER = np.array([p[2] for p in PARAMETERS])
 PINNED_INDICES = (2, 3)
 """Positions of k_ż and k_z in :data:`PARAMETERS`: the drift gains a schedule holds."""
 DRIFT_GAINS_PATH = Path(__file__).resolve().parent / "data" / "drift_gains.yaml"
-"""The drift-gain schedule `vega design` tunes with by default (since 2026-11-27, eighth
-session; docs/FLIGHT_DESIGN.md §4, "The drift gains"): written by tools/design/drift_schedule.py
-from the table flown since 2026-11-27 (its step 6 divided out). Why: the cost (margins,
-robustness, crossover) hardly depends on them — two from-scratch tunings of the same code differ
-5× in k_z at 4 s — while the Monte Carlo load verdicts follow them: the first from-scratch table
-passed 724 of 852 flights, the same table with these drift gains 746. The load/drift trade is
-the designer's choice (§7), so it is an input of the tuning, not one of its free parameters.
+"""The drift-gain schedule `vega design` tunes with by default (docs/FLIGHT_DESIGN.md §4, "The
+drift gains"): the drift gains per unit k_θ of the grid points of the hand-finished table kept as
+tests/data/tvc_controller_2026-11-27.npz, step 6 divided out (the file's header and ``source``
+name that table by SHA-256). Why: the cost (margins, robustness, crossover) hardly depends on
+them — two from-scratch tunings of the same code differ 5× in k_z at 4 s — while the Monte
+Carlo load verdicts follow them: a from-scratch table with tuned drift gains passed 724 of 852
+flights, the same table with these drift gains 746. The load/drift trade is the designer's
+choice (§7), so it is an input of the tuning, not one of its free parameters.
 
-Since 2026-12-02 (schema 2) the schedule holds the drift gains *per unit k_θ*: g_ż = k_ż/k_θ
-and g_z = k_z/k_θ, the attitude the drift loop commands per m/s of drift rate and per m of
-drift (u = F·k_θ·(θ + τ_d·θ̇ + g_z·z + g_ż·ż), :func:`controller_ss`), and the tuning sets
+The schedule (schema 2) holds the drift gains *per unit k_θ*: g_ż = k_ż/k_θ and g_z = k_z/k_θ,
+the attitude the drift loop commands per m/s of drift rate and per m of drift
+(u = F·k_θ·(θ + τ_d·θ̇ + g_z·z + g_ż·ż), :func:`controller_ss`), and the tuning sets
 k_ż = g_ż·k_θ, k_z = g_z·k_θ for whatever k_θ it tries (:func:`pin_drift`). Why: with k_ż and k_z
-held as absolute gains, a tuning that makes the attitude loop 9 % softer at 80–84 s (k_θ 0.395
-against 0.43) commands 9 % more attitude per unit drift, and the second from-scratch table lost
-5 weak-wind Monte Carlo flights to Qα at Mach 4.8–5.0 (80–83 s) that the flown table passes;
-the same table with its drift gains set to the flown table's g_ż, g_z passes 4 of them
-(docs/FLIGHT_DESIGN.md §4)."""
+held as absolute gains (schema 1), a tuning that makes the attitude loop 9 % softer at 80–84 s
+(k_θ 0.395 against 0.43) commands 9 % more attitude per unit drift; such a from-scratch table
+lost 5 weak-wind Monte Carlo flights to Qα at Mach 4.8–5.0 (80–83 s) that the hand-finished
+table passes, and the same table with its drift gains set to that table's g_ż, g_z passes 4 of
+them (docs/FLIGHT_DESIGN.md §4)."""
 
 
 @dataclass(frozen=True)
@@ -170,12 +171,12 @@ RELIEF_PARAMETERS = (
     ("k_acc_mrad_per_mps2", -50.0, 50.0),   # load-relief gain k_a [mrad/(m/s²)]
     ("log10_tau_acc_s", -1.0, 0.7),         # its filter time constant 0.1 … 5 s
 )
-"""Optional load relief (issue 9 item 3; docs/FLIGHT_DESIGN.md §7), appended to a parameter
+"""Optional load relief (docs/FLIGHT_DESIGN.md §7), appended to a parameter
 vector of :data:`PARAMETERS`: the lateral acceleration, derived inside the controller from the
 INS drift rate as a filtered derivative k_a·s/(τs + 1)·ż, added to the feedback sum before the
 filters. Below 1/τ it is k_a·z̈; z̈ carries the normal force −N_α·α/m (docs/MODEL.md §3), the
 classical load-relief measurement (the table keeps the four INS inputs). A vector of
-len(PARAMETERS) has no relief (the controller of every table made before, order 8); with
+len(PARAMETERS) has no relief (the controller `vega design` tunes, order 8); with
 these two more the order is 9 and k_a = 0 gives the same input-output map (the filter state
 is then unobservable). Box (assumption): |k_a| ≤ 50 mrad/(m/s²) is ≈ 0.4 × the attitude
 weight (k_θ·m/N_α ≈ 0.12 rad/(m/s²) at max-Q), beyond the 0.05 that broke the margins
@@ -205,8 +206,8 @@ def with_relief(x, k_acc_mrad_per_mps2: float = 0.0, log10_tau_s: float = 0.0) -
 
 UNSTABLE_EPS = 1e-6
 """A loop is unstable with an eigenvalue |z| > 1 + 1e-6 (as
-:func:`.margins.sampled_data_stability`); eigenvalues between 1 − 1e-4 and that are penalised
-too (tuned off the unit circle)."""
+:func:`vega_loops.margins.sampled_data_stability`); eigenvalues between 1 − 1e-4 and that are
+penalised too (tuned off the unit circle)."""
 
 DESIGN_MARGIN = {"pm_deg": 1.0, "gm_db": 0.3}
 """Tuned beyond the requirement by this much, so that the verification on its denser grid
@@ -283,7 +284,7 @@ class DesignSet:
 
 def design_deviations(uset) -> list[tuple[str, str, dict]]:
     """The dispersed plants tuned against (label, family, deviations); a documented subset
-    (the verification uses :func:`.margins.dispersed_corners` and Monte Carlo samples):
+    (the verification uses :func:`vega_loops.margins.dispersed_corners` and Monte Carlo samples):
 
     * rigid: the 2^6 corners of x_CP, density, thrust, J_yy, actuator bandwidth and delay
       (what moves the rigid-body loop most: aerodynamic and control moment, inertia, phase);
@@ -303,7 +304,7 @@ def design_deviations(uset) -> list[tuple[str, str, dict]]:
              {"delay_s": uset["delay_s"].lower, "actuator": uset["actuator"].upper,
               "thrust": uset["thrust"].lower})
     # the pitch inertia of thesis Table 2.3 (4.6e6 kg·m² at 60 s) against the reference data
-    # the product flies (5.88e6): −22 %, an off-nominal plant that must stay stable (issue 14)
+    # the product flies (5.88e6): −22 %, an off-nominal plant that must stay stable
     out.append(("rigid jyy-0.22 (Table 2.3 J)", "rigid", {**uset.nominal(), "jyy": JYY_TABLE_2_3}))
     # mode 1 also at the two loop corners where thrust, actuator bandwidth and delay push
     # the same way at its frequency (more modal force and less lag | less force and more
@@ -343,11 +344,11 @@ PAD_TIMES_S = (0.0,)
 controller flies alone: the table holds it below the lift-off velocity, from the first INS
 sample on. At 0 s the thrust is still 0 (reference trajectory data): the nozzle moves the
 vehicle only through its inertia ("tail wags dog"), which excites the bending modes with no
-rigid-body control to go with it. Found by `vega margins --dispersed` on the first
-from-scratch `vega design` table (2026-11-27, eighth session): its 0.5 s point, tuned on 0.5 s
-plants only, left mode 2 (−25 %) with delay +10 ms unstable at 0 s (|z| 1.0002) at 16 corners
-and phase-stabilised with a 2 dB gain margin at 32 more. The bending plants of the design set
-at these times are therefore part of the first grid point's design set (:func:`design_set`)."""
+rigid-body control to go with it. Measured by `vega margins --dispersed`: a 0.5 s point tuned
+on 0.5 s plants only left mode 2 (−25 %) with delay +10 ms unstable at 0 s (|z| 1.0002) at 16
+corners and phase-stabilised with a 2 dB gain margin at 32 more. The bending plants of the
+design set at these times are therefore part of the first grid point's design set
+(:func:`design_set`)."""
 
 
 def design_set(context, t_s: float, uset) -> DesignSet:
@@ -462,7 +463,7 @@ def wind_alpha_gain(K, load, metric: str = "peak") -> float:
 
 def with_load(ds: "DesignSet", context, weight: float, metric: str = "peak") -> "DesignSet":
     """``ds`` with the load objective: ``weight`` × :func:`wind_alpha_gain` (``metric``) added
-    to the cost of :func:`evaluate_discrete` (0: the cost of every table made before)."""
+    to the cost of :func:`evaluate_discrete` (0: no load objective, what `vega design` tunes)."""
     if metric not in LOAD_METRICS:
         raise ValueError(f"load metric {metric!r}: one of {LOAD_METRICS}")
     ds.load = load_model(context, ds.t_s)
@@ -481,8 +482,9 @@ def _discrete_response(Ad, Bd, Cd, Dd, z):
 
 def _loop_templates(models, Cs, nc: int):
     """Per group of plants with the same delay-line length: the controller-independent part
-    of the sampled-data closed-loop matrix (the layout of :func:`.margins._closed_loop_matrices`:
-    states [x, u_{k−1} … u_{k−d−1}, x_c]) and the stacked output matrices C."""
+    of the sampled-data closed-loop matrix (the layout of
+    :func:`vega_loops.margins._closed_loop_matrices`: states [x, u_{k−1} … u_{k−d−1}, x_c]) and
+    the stacked output matrices C."""
     groups: dict[int, list[int]] = {}
     for i, model in enumerate(models):
         groups.setdefault(model[3], []).append(i)
@@ -506,7 +508,8 @@ def _loop_templates(models, Cs, nc: int):
 
 def _closed_loop_radius(ds: DesignSet, K) -> np.ndarray:
     """Largest |eigenvalue| of every design plant's exact sampled-data closed loop (the
-    matrices of :func:`.margins._closed_loop_matrices`, assembled for all plants at once)."""
+    matrices of :func:`vega_loops.margins._closed_loop_matrices`, assembled for all plants at
+    once)."""
     Ad, Bd, Cd, Dd = K
     nc = Ad.shape[0]
     if ds.templates is None or ds.templates[1] != nc:
@@ -527,10 +530,11 @@ def _closed_loop_radius(ds: DesignSet, K) -> np.ndarray:
 
 
 def band_criterion_misses(L: np.ndarray, band_masks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The exact bending criterion of :func:`.margins.bending_ok` inside the bands, per plant:
-    at every phase crossover in a band (L crosses the negative real axis) |20·log10|L|| ≥ 6 dB,
-    at every gain crossover in a band (|L| = 1) 180° − |∠L| ≥ 30°. (A band whose peak is
-    ≤ −6 dB has neither with |L| > 0.5, so a gain-stabilised mode passes by construction.)
+    """The exact bending criterion of :func:`vega_loops.margins.bending_ok` inside the bands, per
+    plant: at every phase crossover in a band (L crosses the negative real axis)
+    |20·log10|L|| ≥ 6 dB, at every gain crossover in a band (|L| = 1) 180° − |∠L| ≥ 30°. (A band
+    whose peak is ≤ −6 dB has neither with |L| > 0.5, so a gain-stabilised mode passes by
+    construction.)
 
     Returns
     -------
@@ -944,16 +948,14 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
                   grid_step_s: float = GRID_STEP_S, seed: int = 1, maxiter: int = 80,
                   popsize: int = 10, workers: int = 2,
                   progress: Callable[[str], None] = print, polish_maxfev: int = 1500,
-                  local_maxiter: int = 30, anchor_x: Mapping[float, Sequence[float]] | None = None,
-                  check_between: bool = True, repair: bool = False,
+                  local_maxiter: int = 30, check_between: bool = True,
                   drift_scale: float = DRIFT_RATE_SCALE,
                   drift_worst_case: Callable[[object, object, float], bool] | None = None,
                   journal=None, drift_gains=None) -> StructuredDesign:
     """Tune the whole flight.
 
     1. The anchors: differential evolution from scratch (``maxiter`` generations; in
-       parallel over ``workers`` processes) — or the given ``anchor_x`` (time -> parameters:
-       reuse of an earlier run's anchors).
+       parallel over ``workers`` processes).
     2. The grid times between two anchors, walked left to right (the intervals in parallel):
        the better of the interpolated and the previous point's parameters, re-tuned
        (``local_maxiter`` generations seeded there) where it :func:`misses` a requirement.
@@ -973,22 +975,18 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
     :func:`.corner_repair.repair_design` (it imports this module); `vega design` applies it
     to the result.
 
-    With ``repair``, the given ``anchor_x`` (e.g. every grid point of an earlier table) are
-    kept where they meet every requirement and go through step 3 where they do not: a repair
-    of an earlier design after a requirement was added, the rest of it unchanged.
-
     The tuning tasks (steps 1–4, run in spawned processes) build the default model context
     themselves; ``context`` is used for the checks made here and must be that default one.
     With a ``journal`` (:class:`.task_journal.TaskJournal`) the tasks of steps 1–5 that
     finished in an earlier, interrupted run of the same code and arguments are reused, not run
-    again: the result is the uninterrupted run's.
+    again: the result is the uninterrupted run's. Step 6 and the checks between the tasks are
+    not journalled: deterministic given the tasks' results, they are recomputed.
 
     With ``drift_gains`` (a :class:`DriftSchedule`, :func:`load_drift_gains`: what `vega
     design` passes by default; or bare rows ``(t_s, k_ż, k_z)``) every tuning of steps 1–5
-    holds the two drift gains at the schedule (:func:`drift_gains_at`; per unit k_θ since
-    2026-12-02) and tunes the twelve other parameters; step 6 scales k_ż after. Without,
-    the drift gains are tuned with the rest (the tables made before 2026-11-27, eighth
-    session).
+    holds the two drift gains at the schedule (:func:`drift_gains_at`: absolute, or per unit
+    k_θ for a schedule of schema 2) and tunes the twelve other parameters; step 6 scales k_ż
+    after. Without, the drift gains are tuned with the rest.
     """
     from vega_model.uncertainty import UncertaintySet
 
@@ -1002,8 +1000,8 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
         anchors, np.arange(math.ceil(anchors[0] / grid_step_s) * grid_step_s, anchors[-1],
                            grid_step_s)]))
     anchor_tasks = [(t, seed + k, maxiter, popsize, polish_maxfev, pin_at(t))
-                    for k, t in enumerate(anchors) if not anchor_x or t not in anchor_x]
-    results = {float(t): (np.asarray(x, float), None) for t, x in (anchor_x or {}).items()}
+                    for k, t in enumerate(anchors)]
+    results = {}
     done: dict[float, tuple] = {}
 
     def _pool_map(fn, tasks):
@@ -1014,10 +1012,7 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
         progress(_line("anchor", t, cost, detail))
     for t in anchors:
         x, detail = results[t]
-        if detail is None:
-            ds = design_set(context, t, uset)
-            detail = evaluate(x, ds, detail=True)[1]
-        done[t] = (x, detail, "given" if repair and anchor_x and t in anchor_x else "anchor")
+        done[t] = (x, detail, "anchor")
     intervals = []
     for k, (a, b) in enumerate(zip(anchors[:-1], anchors[1:])):
         inner = [float(t) for t in grid_t if a + 1e-9 < t < b - 1e-9]
@@ -1043,7 +1038,7 @@ def design_flight(context, anchors_s: Sequence[float] = DEFAULT_ANCHORS_S,
     # 4. the flown controller between grid points (interpolated as the runtime does): where
     #    it misses a requirement, a grid point is added there and tuned (twice at most)
     #    — kept only where its tuning is better than the flown controller it replaces there
-    #    (2026-11-27: an unguarded step added lift-off points worse than the interpolation)
+    #    (measured: unguarded, it added points near lift-off worse than the interpolation)
     refused: set = set()
     for _ in range(2 if check_between else 0):
         times = sorted(done)
@@ -1128,36 +1123,6 @@ def hold_tail(context, done: Mapping[float, tuple], seed: int = 4000,
     return done
 
 
-def retune_tail(context, grid_times_s, xs, anchors_s, tuning: Mapping, seed: int = 4001,
-                progress: Callable[[str], None] | None = None,
-                **tail_options) -> StructuredDesign:
-    """An earlier design (its grid times, parameters, anchors and tuning record) with only its
-    tail-off re-tuned (:func:`hold_tail`): ``vega design --tail-from TABLE``."""
-    from vega_model.uncertainty import UncertaintySet
-
-    uset = UncertaintySet.from_vehicle(context.vehicle)
-    done = {}
-    for t, x in zip(grid_times_s, xs):
-        x = np.asarray(x, dtype=float)
-        detail = None if t >= TAIL_OFF_HOLD_S else evaluate(
-            x, design_set(context, float(t), uset), detail=True)[1]
-        done[float(t)] = (x, detail, "given")
-    if TAIL_OFF_HOLD_S not in done:
-        raise ValueError(f"retune_tail: the design has no grid point at {TAIL_OFF_HOLD_S:g} s")
-    done = hold_tail(context, done, seed=seed, progress=progress, **tail_options)
-    grid_t = np.array(sorted(done))
-    record = dict(tuning)
-    record["tail"] = {"seed": seed, "times_s": list(tail_options.get("times_s",
-                                                                    TAIL_DESIGN_TIMES_S)),
-                      "maxiter": tail_options.get("maxiter", TAIL_MAXITER),
-                      "popsize": tail_options.get("popsize", TAIL_POPSIZE)}
-    record["how"] = {f"{t:g}": done[float(t)][2] for t in grid_t}
-    return StructuredDesign(grid_t, np.array([context.parameters(float(t)).v_mps
-                                              for t in grid_t]),
-                            np.array([done[float(t)][0] for t in grid_t]),
-                            [done[float(t)][1] for t in grid_t], tuple(anchors_s), record)
-
-
 WORST_CASE_STEP_S = 0.5
 """Step 6 checks `vega robust`'s worst case at the flight times of its default grid (0–100 s
 every 0.5 s, s) between two grid points: the times at which the shipped table is verified."""
@@ -1206,21 +1171,21 @@ def scale_drift(context, done: Mapping[float, tuple], factor: float = DRIFT_RATE
 
     * on its design set (:func:`requirement_misses`);
     * for the flown controller midway to its left neighbour, on the design set there;
-    * with ``worst_case`` (since 2026-11-27, third session; a check ``(table, context, t) ->
-      bool``, normally :func:`vega_analysis.robust.worst_case_bending_ok`: `vega robust`'s
-      worst case meets the exact bending criterion), at every time of `vega robust`'s grid
-      between the left neighbour and it (:func:`worst_case_times`), wherever the check passes
-      with both points unscaled. The worst-case plant is not in the design set (the scaled
-      table of the second session missed it at 81.5 s by 0.011 dB while meeting every
-      design-set requirement there). Passed in rather than imported: :mod:`.robust` imports
-      this module, and the package's modules import no cycle (import-linter).
+    * with ``worst_case`` (a check ``(table, context, t) -> bool``, normally
+      :func:`vega_analysis.robust.worst_case_bending_ok`: `vega robust`'s worst case meets the
+      exact bending criterion), at every time of `vega robust`'s grid between the left
+      neighbour and it (:func:`worst_case_times`), wherever the check passes with both points
+      unscaled. The worst-case plant is not in the design set: a table scaled without this
+      check (k_ż × 2 at 80 and 82 s) met every design-set requirement at 81.5 s and missed the
+      worst case there by 0.011 dB (docs/FLIGHT_DESIGN.md §4, step 6). Passed in (None: no
+      such check) so that the caller chooses it; `vega design` passes that one.
 
     Elsewhere the unscaled parameters stay (reported through ``progress``). A refused point
-    can leave its left neighbour's interval with a miss that the pair had unscaled (the miss
-    of the second session at 81.5 s came from 80 *and* 82 s scaled: either one unscaled still
-    missed it): then the left neighbour is unscaled too, and so on leftwards, until no interval
-    adds a miss. (Not "meets every requirement": a few grid points of the shipped table miss
-    the exact bending criterion at a dispersed corner unscaled already, docs/FLIGHT_DESIGN.md
+    can leave its left neighbour's interval with a miss that the pair had unscaled (the miss at
+    81.5 s above came from 80 *and* 82 s scaled: either one unscaled still missed it): then the
+    left neighbour is unscaled too, and so on leftwards, until no interval adds a miss. (Not
+    "meets every requirement": a few grid points of the shipped table miss the exact bending
+    criterion at a dispersed corner unscaled already, docs/FLIGHT_DESIGN.md
     §6.4.) Raises ValueError when the scaled gain leaves the search box of :data:`PARAMETERS`."""
     from vega_model.uncertainty import UncertaintySet
 
@@ -1304,37 +1269,6 @@ def scale_drift(context, done: Mapping[float, tuple], factor: float = DRIFT_RATE
     return done
 
 
-def rescale_drift(context, grid_times_s, xs, anchors_s, tuning: Mapping,
-                  factor: float = DRIFT_RATE_SCALE,
-                  progress: Callable[[str], None] | None = None,
-                  worst_case: Callable[[object, object, float], bool] | None = None
-                  ) -> StructuredDesign:
-    """An earlier design with only step 6 applied (:func:`scale_drift`, ``worst_case`` passed
-    on): ``vega design --drift-from TABLE``. Raises ValueError when the design's tuning record
-    says its drift gain was already scaled (scaling twice would compound the factor)."""
-    if "drift" in tuning:
-        raise ValueError(f"rescale_drift: the drift-rate gain of this design was already scaled "
-                         f"({tuning['drift']})")
-    done = {float(t): (np.asarray(x, dtype=float), None, "given")
-            for t, x in zip(grid_times_s, xs)}
-    done = scale_drift(context, done, factor, progress=progress, worst_case=worst_case)
-    grid_t = np.array(sorted(done))
-    record = dict(tuning)
-    record["drift"] = {"factor": factor, "from_s": DRIFT_SCALE_FROM_S,
-                       "worst_case_checked": worst_case is not None}
-    record["how"] = {f"{t:g}": done[float(t)][2] for t in grid_t}
-    from vega_model.uncertainty import UncertaintySet
-
-    uset = UncertaintySet.from_vehicle(context.vehicle)
-    details = [done[float(t)][1] or evaluate(done[float(t)][0],
-                                             design_set(context, float(t), uset),
-                                             detail=True)[1] for t in grid_t]
-    return StructuredDesign(grid_t, np.array([context.parameters(float(t)).v_mps
-                                              for t in grid_t]),
-                            np.array([done[float(t)][0] for t in grid_t]), details,
-                            tuple(anchors_s), record)
-
-
 def flown_between(context, left, right, t_s: float):
     """The discrete controller the runtime flies at the nominal velocity of ``t_s`` between
     the grid points ``left = (t, x)`` and ``right``: each point's Tustin controller,
@@ -1381,7 +1315,7 @@ def table_matrices(design: StructuredDesign, context):
 
 def write_structured_table(path, design: StructuredDesign, context):
     """Export the design in the controller-table format (metadata ``design: structured``; no
-    γ, no rate bounds: NaN) through :func:`.export.write_controller_table`."""
+    γ, no rate bounds: NaN) through :func:`vega_loops.export.write_controller_table`."""
     import scipy
 
     from vega_loops.export import write_controller_table

@@ -1,11 +1,15 @@
 """A journal of finished design tasks, so that an interrupted ``vega design`` resumes.
 
-A from-scratch ``vega design`` runs for hours on two cores (docs/FLIGHT_DESIGN.md §4); a kill,
-a reboot or the end of a working session used to lose all of it. Every tuning task of the
+A from-scratch ``vega design`` runs for hours on two cores (docs/FLIGHT_DESIGN.md §4); without
+a record of the finished work a kill or a reboot loses all of it. Every tuning task of the
 design (an anchor, a grid walk between two anchors, a rescue, a point added between grid
-points, the tail-off tuning) is a deterministic function of its arguments — the searches are
-seeded — so its result can be written down when it finishes and reused when the same task
-comes again: a resumed run computes exactly what the uninterrupted run would have.
+points, the tail-off tuning: steps 1–5) is a deterministic function of its arguments — the
+searches are seeded — so its result can be written down when it finishes and reused when the
+same task comes again: a resumed run computes exactly what the uninterrupted run would have.
+What is not journalled (the checks between the tasks, step 6's drift-rate scaling, step 7's
+corner repair) is deterministic given the tasks' results and is recomputed: step 6 takes a few
+minutes, step 7 ≈ 6–25 min on two cores, against hours for the tasks. This is the design's only
+way back into a run: a table is always made from its inputs, never from an earlier table.
 
 The journal is a text file of JSON lines: a header naming the code that wrote it, then one
 line per finished task — the task's key (SHA-256 of the function's name and a canonical

@@ -1,4 +1,5 @@
-"""Classical margins of the FLOWN controller over the whole flight (issue 9 item 5, issue 14).
+"""Classical margins of the FLOWN controller over the whole flight (heritage margins:
+docs/FLIGHT_DESIGN.md §3; robust stability: docs/ROBUST_ANALYSIS.md §1).
 
 What is analysed, per frozen flight time t (the loop broken at the actuator input):
 
@@ -6,7 +7,7 @@ What is analysed, per frozen flight time t (the loop broken at the actuator inpu
   dt, 20 ms), interpolated linearly in the scheduling velocity between grid points exactly as
   :class:`vega_gnc.controller_runtime.ControllerRuntime` does (same interpolation weights, same
   ρ̇ slice: the runtime's default, the upper one; the velocity clamped to the grid, so that
-  outside 10–90 s today the end-point controller flies), with the table's measurement sign
+  outside the grid's span the end-point controller flies), with the table's measurement sign
   and input order. Its response is K(e^{jωT});
 * **the plant** — :func:`vega_model.dynamics.linear_model` at ``context.parameters(t)`` (what
   ``vega linearize`` prints), outputs picked by the table's ``input_names``, driven through
@@ -41,7 +42,7 @@ crossovers where |L| = 1, both located by linear interpolation in log ω on a de
 
 * rigid-body band: ω < 0.8 ω₁ (ω₁ of the plant analysed, dispersed or not);
   ``gm_low_db`` = the gain *reduction* the loop tolerates = min 20·log10|L| over the phase
-  crossovers with |L| > 1 (a positive number; issue 9 quotes it with a minus sign),
+  crossovers with |L| > 1 (a positive number; requirement tables often write it −6 dB),
   ``gm_high_db`` = the gain *increase* = min −20·log10|L| over those with |L| < 1,
   ``pm_deg`` = the phase margin 180° + ∠L at the gain crossover whose |margin| is smallest
   (signed, as python-control reports it: negative = the phase is beyond −180°);
@@ -50,7 +51,7 @@ crossovers where |L| = 1, both located by linear interpolation in log ω on a de
   over the gain crossovers and the gain margin (|20·log10|L||) over the phase crossovers
   inside the band (inf if none); the mode is *gain-stabilised* if the peak is ≤ −6 dB
   (requirement), otherwise it counts as *phase-stabilised* and passes if b{i}_pm ≥ 30° and
-  b{i}_gm ≥ 6 dB there (the criterion issue 14 states for phase stabilisation);
+  b{i}_gm ≥ 6 dB there (the phase-stabilisation criterion, docs/ROBUST_ANALYSIS.md §1);
 * above the rigid band, outside both bending bands: ``hf_peak_db`` (a gain crossover there
   would be neither rigid body nor bending, and is flagged by it).
 
@@ -96,8 +97,8 @@ __all__ = [
 
 REQUIREMENTS = {"gm_db": 6.0, "pm_deg": 30.0, "bending_db": -6.0,
                 "bending_phase_pm_deg": 30.0, "bending_phase_gm_db": 6.0}
-"""Heritage launcher margins (issue 9 item 5): GM ≥ 6 dB both sides, PM ≥ 30°, bending
-≤ −6 dB or phase-stabilised with ≥ 30° / 6 dB (issue 14's phase-stabilisation criterion)."""
+"""Heritage launcher margins (docs/FLIGHT_DESIGN.md §3, docs/ROBUST_ANALYSIS.md §1): GM ≥ 6 dB
+both sides, PM ≥ 30°, bending ≤ −6 dB or phase-stabilised with ≥ 30° / 6 dB."""
 
 RIGID_EDGE = 0.8       # rigid-body band: ω < RIGID_EDGE·ω₁
 BAND = (0.8, 1.2)      # bending band: BAND·ω_i (as verification.loop_margins)
@@ -621,10 +622,11 @@ def dispersed_corners(uset) -> list[dict]:
       aerodynamic and mass parameters nominal (they act below the bending band);
     * off-nominal (641): J_yy of thesis Table 2.3 (:data:`JYY_TABLE_2_3`, −21.8 %), the
       rest nominal: the thesis' two sources disagree on the inertia beyond the set's ±2 %,
-      and the plant of the other source must stay stable too (issue 14).
+      and the plant of the other source must stay stable too (docs/FLIGHT_DESIGN.md §5).
 
-    Corners only: a phase-stabilised mode can be worst at an interior frequency (issue 14
-    found mode 1 frozen-unstable from −9.4 %), which a corner search does not look for.
+    Corners only: a phase-stabilised mode can be worst at an interior frequency (a loop
+    with mode 1 frozen-unstable from −9.4 %, inside its −20 … +15 % range, has been
+    measured), which a corner search does not look for.
 
     Returns
     -------
@@ -816,10 +818,10 @@ def criteria_ok(row: Mapping, req: Mapping = REQUIREMENTS) -> dict:
 
 DISPERSED_CRITERION = {"gm_db": 3.0, "pm_deg": 20.0, "bending_db": -3.0,
                        "bending_phase_pm_deg": 20.0, "bending_phase_gm_db": 3.0}
-"""Relaxed criterion reported beside the nominal one for the dispersed plants (issue 9 item 5's
-example, 3 dB / 20°: the usual heritage relaxation for tolerance cases, margins kept positive
-with half the nominal gain margin). Issue 14 asks the nominal 6 dB on bending over the whole
-dispersed set: both verdicts are given."""
+"""Relaxed criterion reported beside the nominal one for the dispersed plants (3 dB / 20°: the
+usual heritage relaxation for tolerance cases, margins kept positive with half the nominal gain
+margin). The robust-stability requirement asks the nominal 6 dB on bending over the whole
+dispersed set (docs/ROBUST_ANALYSIS.md §1): both verdicts are given."""
 
 # criterion -> (row key, "min" or "max" is worst, unit)
 CRITERIA = {"gm_low_db": ("gm_low_db", "min", "dB"), "gm_high_db": ("gm_high_db", "min", "dB"),

@@ -49,10 +49,10 @@ from vega_lpv.sdp_ipm import solve_conic, solve_conic_hsde
 __all__ = ["SynthesisError", "LpvSynthesisResult", "synthesize"]
 
 _ACCEPTED_STATUSES = (cp.OPTIMAL, cp.OPTIMAL_INACCURATE)
-# The in-house interior-point method (sdp_ipm.py, normal equations; issue 10), selected with
-# solver="IPM" (pipeline.SOLVER_PATHS["ipm"]), Clarabel (sparse LDLᵀ of the whole KKT system) as
-# its fallback. Not a cvxpy solver name: the problem is canonicalised for Clarabel (same cone
-# convention) and solved here.
+# The in-house interior-point method (sdp_ipm.py, normal equations; docs/SYNTHESIS.md §8),
+# selected with solver="IPM" (pipeline.SOLVER_PATHS["ipm"]), Clarabel (sparse LDLᵀ of the whole
+# KKT system) as its fallback. Not a cvxpy solver name: the problem is canonicalised for
+# Clarabel (same cone convention) and solved here.
 IPM = "IPM"
 _SOLVER_OPTIONS = {
     # faer: multithreaded supernodal LDLᵀ (qdldl is ~20× slower on the 19-state problem);
@@ -500,7 +500,8 @@ def _stage1(layout, n, eps, regularisation, solver, form="reduced"):
     """Stage 1 (§3): maximise g − δ·mean_i tr(X(ρ_i) + Y(ρ_i))/(2n) subject to the LMIs of §2.
 
     ``form``: "reduced" (default) imposes the LMIs Schur-reduced with h ≥ g²
-    (``_lmi_constraints_g2``), "full" in their 3×3-block form (the formulation before issue 10).
+    (``_lmi_constraints_g2``), "full" in their 3×3-block form (the "clarabel" solver path,
+    ``pipeline.SOLVER_PATHS``).
     """
     Xk, Yk = _variables(layout, n)
     g = cp.Variable(name="g")

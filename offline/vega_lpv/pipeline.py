@@ -44,8 +44,8 @@ __all__ = ["thesis_scenario_metrics", "GRIDS", "RATE_BOXES", "SOLVER_PATHS", "gr
 # (sdp_ipm.py) on the Schur-reduced stage-1 LMIs and, on the self-dual embedding, for stage 2,
 # Clarabel then SCS as fallbacks (solves the 3-, 9- and 26-point problems); "hybrid" = Clarabel
 # on the Schur-reduced stage 1, the IPM for stage 2; "clarabel" = the path that produced the
-# shipped lpv_controller.npz (the default until 2026-11-27). "ipm" is the default of
-# `vega synth` (DEFAULT_SOLVER_PATH) since it met the issue-10 time targets on the quiet 2-core
+# shipped lpv_controller.npz. "ipm" is the default of `vega synth` (DEFAULT_SOLVER_PATH): it
+# meets the time targets (9-point synthesis ≤ 60 s, `vega synth` ≤ 120 s) on the quiet 2-core
 # machine with γ within 0.5 % and the certificate passing (docs/SYNTHESIS.md §8).
 SOLVER_PATHS = {
     "ipm": {"solver": "IPM", "fallback": ("CLARABEL", "SCS"), "stage1_form": "reduced"},
@@ -247,14 +247,14 @@ def run_synthesis(grid: str = "refined", weights: str = "shipped", out: str | Pa
 
     options = SOLVER_PATHS[solver_path]
     # the quadratic synthesis (one stage, constant X, Y) is solved by the IPM on every path but
-    # the old one (on the 26-point grid: γ 1.78386 against Clarabel's 1.78374)
+    # "clarabel" (on the 26-point grid: γ 1.78386 against Clarabel's 1.78374)
     quadratic_options = SOLVER_PATHS["clarabel" if solver_path == "clarabel" else "ipm"]
     worker = None
     if parallel:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
-        # spawn, not fork: a worker forked from a process that had run Clarabel before (its
-        # thread pool) hung on an inherited lock (a second run_synthesis in the same process).
+        # spawn, not fork: a worker forked from a process that has run Clarabel (its thread
+        # pool) can hang on an inherited lock (e.g. a second run_synthesis in the same process).
         # Spawn re-imports the caller's __main__, so a script without a main guard cannot
         # start the worker: then the two stages run here after all (below).
         worker = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))

@@ -175,8 +175,8 @@ class FramesRecorded:
     sent all its messages no longer counts; 0 before a topic's first message.
 
     The plant does not run more than :data:`vega_bus.schedule.RECORDER_WINDOW_FRAMES` frames
-    beyond this report. Counting only the truth messages (as until 2026-11-27) let the plant
-    run on while another writer's deliveries to the recorder were held up: in a soak of the
+    beyond this report. Why every topic: counting only the truth messages lets the plant run
+    on while another writer's deliveries to the recorder are held up: in a soak of the
     test suite (two copies on two cores) the recorder lost /vega/ins samples 8 153–9 000 — 848
     frames — while truth kept arriving, more than the INS writer's KEEP_LAST history of 1 000
     samples could still repair in time. With every topic in the report, a writer whose

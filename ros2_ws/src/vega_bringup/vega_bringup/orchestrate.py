@@ -6,7 +6,7 @@
   parameters file all nodes share (:func:`params_yaml`), the command of each node
   (:func:`node_command`) and the same as a line to paste into a terminal
   (:func:`shell_line`), the run directory layout (:class:`RunLayout`);
-* :class:`Supervisor` starts every node as its own process (own session and process group,
+* :class:`Supervisor` starts every node as its own process (setsid: own process group,
   the environment of :func:`vega_bringup.rosenv.ros_environment` with one ROS_DOMAIN_ID for the
   whole run, output to a log file per node), watches the start barrier on ``/vega/ready``
   (:class:`ReadyWatcher`), waits for the flight to end, and stops everything on a failure or
@@ -617,7 +617,7 @@ class Supervisor:
 
     # -- starting
     def start(self):
-        """Start every node (own session/process group, log file, the run's environment)."""
+        """Start every node (setsid: own process group; log file, the run's environment)."""
         self.layout.log_dir.mkdir(parents=True, exist_ok=True)
         for spec, command in self.nodes:
             log_path = self.layout.log_file(spec)

@@ -39,17 +39,17 @@ __all__ = ["RunInfo", "RECORDER_REPORT_FRAMES", "RECORDER_WINDOW_FRAMES", "CLOCK
 
 # Back-pressure from the recorder, the one participant no data dependency holds in step: it
 # reports every RECORDER_REPORT_FRAMES truth messages the frames it holds on every topic
-# (/vega/recorded, vega_bags.recorder.FramesRecorded: the truth alone until 2026-11-27, when a
-# soak lost 848 /vega/ins samples while truth kept arriving), and the plant
+# (/vega/recorded, vega_bags.recorder.FramesRecorded: every topic, not the truth alone — with
+# the truth alone a soak lost 848 /vega/ins samples while truth kept arriving), and the plant
 # does not publish frame k while k − reported ≥ RECORDER_WINDOW_FRAMES. The window keeps the
 # messages in flight towards the recorder (≈ 4.5 per frame) well inside the publishers'
 # KEEP_LAST history (DATA_QUEUE_DEPTH = 1000 per topic; beyond it a writer drops samples the
 # recorder has not acknowledged) and inside the 512 descriptors of a Fast DDS shared-memory
 # port, whatever the load of the machine: at most (window + report interval) frames are not
-# yet reported, (60 + 20) × 4.5 ≈ 360 messages. The window was 100 frames until 2026-11-27,
-# (100 + 20) × 4.5 ≈ 540 — over the 512: once the nodes had become faster (vega_bus.cdr), a
-# CI run lost /vega/ins samples 443–864 towards a descheduled recorder, which refused the
-# gap (StreamCheck: "publication sequence number 865, expected 443").
+# yet reported, (60 + 20) × 4.5 ≈ 360 messages. A window of 100 frames, (100 + 20) × 4.5 ≈ 540,
+# is over the 512: with nodes as fast as vega_bus.cdr makes them, a CI run with it lost
+# /vega/ins samples 443–864 towards a descheduled recorder, which refused the gap
+# (StreamCheck: "publication sequence number 865, expected 443").
 RECORDER_REPORT_FRAMES = 20
 RECORDER_WINDOW_FRAMES = 60
 

@@ -655,7 +655,7 @@ HARD_SHUTDOWN_MARGIN_S = 3.0
 
 A teardown blocked in C code that holds the GIL starves the watchdog thread: seen in CI,
 ``ins_sensor`` silent for 30 s after a complete run (its bag complete), and in a soak of the
-test suite (2026-11-27, fifth session) the INS and the actuator with their main thread in
+test suite (two copies on two cores) the INS and the actuator with their main thread in
 rclpy's ``Node.destroy_node`` → ``destroy_when_not_in_use()`` (rmw_destroy_node) for more than
 13 s. Then :func:`faulthandler.dump_traceback_later` (a C thread) writes the Python stacks to
 stderr and, :data:`EXIT_AFTER_STACKS_S` later, a POSIX timer of the C library

@@ -12,8 +12,8 @@ errors the same way:
   defect: the traceback on stderr, exit status 1.
 
 The classes subclass ``ValueError``, so every ``except ValueError`` and
-``pytest.raises(ValueError)`` written before this module keeps working; a plain ``ValueError``
-is now reserved for internal checks (invariants, numerical failures, programming errors).
+``pytest.raises(ValueError)`` keeps catching them; a plain ``ValueError`` is reserved for
+internal checks (invariants, numerical failures, programming errors).
 The shape follows python-control's ``control/exception.py``: a few classes on the standard
 exceptions, named for what went wrong, not for where.
 """

@@ -341,7 +341,7 @@ def _collector_paused():
     A run allocates ≈ 0.3 million objects (the parameter track's 10 001 sets, a record per node
     and frame); with the collector on they trigger full collections, which traverse every object
     of the process (the memoised tracks included): ≈ 60 ms of CPU per Monte Carlo flight,
-    ≈ 13 % (measured 2026-11-27). Only the speed changes, never a number. The collector's state
+    ≈ 13 % (docs/MONTE_CARLO.md §8). Only the speed changes, never a number. The collector's state
     is restored on exit (left off if it was off)."""
     enabled = gc.isenabled()
     gc.disable()

@@ -75,8 +75,8 @@ _MAX_PROFILE_SHIFT_M = 10_000.0
 # mean something; drift 1 000 m and 50 m/s are twice the drift budget and > 3× the drift-rate
 # budget (docs/REQUIREMENTS.md); modal amplitudes 10 are 10× the Monte Carlo stability limit
 # of mode 1 (|q1| > 1), modal rates 1 000 /s about 10× that amplitude at the highest bending
-# frequency (≈ 75 rad/s)). Issue 11 item 5: a finite but absurd value (1e300) flew and
-# produced NaN.
+# frequency (≈ 75 rad/s)). Bounded, not only finite: a finite but absurd value (1e300) flies
+# and produces NaN (docs/ADVERSARIAL.md, case 1).
 _INITIAL_STATE_LIMITS = {"theta_rad": 0.35, "theta_dot_radps": 0.35, "z_m": 1000.0,
                          "z_dot_mps": 50.0, "q1": 10.0, "q2": 10.0, "q1_dot": 1000.0,
                          "q2_dot": 1000.0}
