@@ -5,6 +5,7 @@ import importlib.util
 import subprocess
 import sys
 from pathlib import Path
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 _spec = importlib.util.spec_from_file_location("soak", ROOT / "tools" / "soak.py")
@@ -28,6 +29,7 @@ def test_round_verdict_needs_every_copy_clean():
     assert not soak.round_passed([0, 0], [ok, dict(ok, passed=0)])
 
 
+@pytest.mark.slow
 def test_one_round_on_real_copies(tmp_path):
     """Two copies of a passing file: exit 0 and a PASS line; of a file with a failing test:
     exit 1, and the log names the failing test of both copies."""

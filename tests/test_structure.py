@@ -184,6 +184,7 @@ def test_the_contracts_see_every_module():
     assert in_graph == in_sources
 
 
+@pytest.mark.slow
 def test_the_contracts_hold():
     result = _lint_imports()
     assert result.returncode == 0, f"lint-imports failed:\n{result.stdout}{result.stderr}"
@@ -244,6 +245,7 @@ def _copy_with(tmp_path: Path, package: str, file: str, code: str) -> Path:
     return copy
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("package, file, code, contract, shown", VIOLATIONS)
 def test_a_violating_import_breaks_its_contract(tmp_path, package, file, code, contract,
                                                 shown):
@@ -255,6 +257,7 @@ def test_a_violating_import_breaks_its_contract(tmp_path, package, file, code, c
     assert shown in output
 
 
+@pytest.mark.slow
 def test_the_copies_are_what_the_contracts_read(tmp_path):
     """Control of the test above: an unchanged copy breaks nothing that the original keeps."""
     _copy_with(tmp_path, "vega_gnc", "controller_runtime.py", "")
@@ -263,6 +266,7 @@ def test_the_copies_are_what_the_contracts_read(tmp_path):
 
 
 # ------------------------------------------------------------------ no cycle, declarations
+@pytest.mark.slow
 def test_no_import_cycle_between_packages():
     graph = _package_graph({p: _source_dir(p) for p in ROOT_PACKAGES})
     cycles = _cycles(graph)
@@ -271,6 +275,7 @@ def test_no_import_cycle_between_packages():
     assert not cycles, f"import cycles between packages: {detail}"
 
 
+@pytest.mark.slow
 def test_the_cycle_check_finds_an_injected_cycle(tmp_path):
     copy = _copy_with(tmp_path, "vega_model", "wind.py",
                       "\n\ndef _injected():\n    from vega_sim import scenario\n")
@@ -304,6 +309,7 @@ def _distribution(name: str) -> str:
     return re.sub(r"[-_.]+", "-", name).lower()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("project", [OFFLINE, CLI], ids=["offline", "cli"])
 def test_pip_projects_declare_what_they_import(project):
     """offline/ and cli/: every third-party and workspace package their code imports is a

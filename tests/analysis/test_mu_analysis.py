@@ -254,6 +254,7 @@ def test_lft_determinant_is_the_ratio_of_return_differences(problem):
             assert lhs == pytest.approx(rhs, rel=2e-6)
 
 
+@pytest.mark.slow
 def test_fresh_plants_of_the_set_stay_within_the_stated_fit_error(problem, validation):
     w = problem.w_radps
     F = problem.controller_row(w)
@@ -286,6 +287,7 @@ def test_modal_rescaling_leaves_the_plant_unchanged(problem, context, table):
         assert not np.allclose(S1, S2)              # the coordinates did change
 
 
+@pytest.mark.slow
 def test_shipped_table_at_max_q(table, context):
     w = np.array([0.3, 6.7, 24.75, 32.47, 73.9])
     res = MU.mu_at_time(table, context, 50.0, w_radps=w, n_repass=2)

@@ -73,6 +73,7 @@ def _alpha_of(point, dev):
     return R._evaluate(point, dev)
 
 
+@pytest.mark.slow
 def test_worst_case_is_no_better_than_any_corner_or_random_plant(point, worst):
     w = worst["worst"]
     assert w["alpha"] <= worst["corner_worst"]["alpha"]
@@ -90,6 +91,7 @@ def test_worst_case_is_no_better_than_any_corner_or_random_plant(point, worst):
     assert w["alpha"] < nominal
 
 
+@pytest.mark.slow
 def test_destabilising_scale_brackets_the_stability_boundary(point, worst):
     u = np.array(worst["worst"]["u"])
     ray = R.destabilising_scale(point, u)

@@ -68,6 +68,7 @@ def step_starts(result):
 
 
 # ------------------------------------------------------------------------------------ hook
+@pytest.mark.slow
 def test_hook_that_changes_nothing_is_bit_identical(short, table, plain):
     """Off (None), unit gain without delay, or a window after the flight: the very same run."""
     assert _identical(run_scenario(short, table, perturbation=None), plain)
@@ -148,6 +149,7 @@ def test_segments_come_from_the_flight_conditions(context):
 
 
 # ---------------------------------------------------------------------------------- verdict
+@pytest.mark.slow
 def test_verdict_passes_the_nominal_flight_and_flags_a_lost_one(table):
     nominal = T.flight_stability(run_scenario("nominal", table))
     assert nominal["stable"] and nominal["failed"] == ""
@@ -165,6 +167,7 @@ def test_verdict_passes_the_nominal_flight_and_flags_a_lost_one(table):
 
 
 # -------------------------------------------------------------------------------- bisection
+@pytest.mark.slow
 def test_gain_margin_up_brackets_the_frequency_domain_one(table, context):
     """Bisection at max-Q on a 5 s window: the flight stays stable at the margin and is lost
     0.25 dB above; the margin lies within a few dB of the smallest frozen-loop gain margin in
@@ -181,6 +184,7 @@ def test_gain_margin_up_brackets_the_frequency_domain_one(table, context):
     assert fd - 0.5 <= res["margin"] <= fd + 3.0, (res, fd)
 
 
+@pytest.mark.slow
 def test_delay_margin_and_outputs(table, tmp_path):
     """The whole API on one short max-Q window, delay only, coarse tolerance: the time-domain
     delay margin is not below the frozen one, the rows, CSV and markdown carry it, and the
@@ -207,6 +211,7 @@ def test_delay_margin_and_outputs(table, tmp_path):
     assert f"| {row['dm_ms']:.0f} / {row['fd_dm_ms']:.0f} |" in table_md
 
 
+@pytest.mark.slow
 def test_workers_do_not_change_the_result_and_a_margin_beyond_the_bracket(table):
     """Lift-off: too little gain does not lose the flight down to k = 0.1 in 4 s (no
     aerodynamic moment to speak of at Mach < 0.2), reported as beyond the bracket; the same

@@ -33,6 +33,7 @@ def _edited(bag, dst, topic, delta):
     return dst, held
 
 
+@pytest.mark.slow
 def test_the_written_counts_are_the_files(bag):
     loaded = bagio.read_run_bag(bag)
     tree = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
@@ -41,6 +42,7 @@ def test_the_written_counts_are_the_files(bag):
     assert listed == {name: len(cols) for name, cols in loaded.topics.items()}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("topic, delta", [("/vega/truth", 9398), ("/vega/ins", -1),
                                           ("/clock", 1)])
 def test_an_edited_count_is_refused_in_one_line(bag, tmp_path, capsys, topic, delta):

@@ -3,6 +3,7 @@ with non-decreasing log times and arbitrary payload bytes, written with RunBagWr
 flushes every second of log time included) reads back per topic in order, bit for bit."""
 
 import itertools
+import pytest
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -19,6 +20,7 @@ messages = st.lists(
     min_size=1, max_size=60)
 
 
+@pytest.mark.slow
 @settings(max_examples=40, deadline=None)
 @given(batch=messages)
 def test_write_then_read_gives_the_same_messages(tmp_path_factory, batch):

@@ -54,6 +54,7 @@ def sample_bag(tmp_path_factory):
     return path
 
 
+@pytest.mark.slow
 def test_fields_read_back_equal(sample_bag):
     """Every field of every sample comes back in its column, with the log time = stamp."""
     bag = bagio.read_run_bag(sample_bag)
@@ -320,6 +321,7 @@ def test_iter_raw_messages_gives_the_recorded_bytes(sample_bag):
     assert math.isclose(decoded.compute_time_s, 1.25e-4) and decoded.seq == 2_500
 
 
+@pytest.mark.slow
 def test_fast_reader_equals_rosbags_deserialiser(tmp_path):
     """The numpy column reader gives what rosbags' deserialiser gives (values, dtypes, shapes),
     and messages of differing layouts (frame_id lengths) fall back to the deserialiser."""

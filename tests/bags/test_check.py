@@ -47,6 +47,7 @@ def _failed(check):
 
 
 # ----------------------------------------------------------------------------- good run
+@pytest.mark.slow
 def test_good_run_passes(good_bag, capsys):
     status, out, err = _vega(["check", str(good_bag)], capsys)
     assert status == 0, out + err
@@ -56,6 +57,7 @@ def test_good_run_passes(good_bag, capsys):
     assert "margin" in out and "controller status: OK 200" in out
 
 
+@pytest.mark.slow
 def test_bag_metrics_equal_the_in_process_run(good_bag, run):
     """The same Table 3.1 figures, bit for bit, from the bag as from the simulation arrays."""
     check = bagcheck.check_bag(good_bag)
@@ -128,6 +130,7 @@ def test_drift_violation_fails_naming_the_requirement(run, tmp_path, capsys):
     assert [r["key"] for r in verdict["requirements"] if not r["passed"]] == ["drift"]
 
 
+@pytest.mark.slow
 def test_actuator_angle_not_command_is_checked(run, tmp_path):
     """A 7° excursion of the actuator samples fails β; the commands are unchanged."""
     def mutate(messages):
@@ -201,6 +204,7 @@ def test_nan_in_truth_fails_the_requirement_too(run, tmp_path):
     assert _failed(check) == {"finite", "drift_rate"}
 
 
+@pytest.mark.slow
 def test_sequence_gap_is_detected(run, tmp_path):
     def mutate(messages):
         del messages[messages_on(messages, topics.TVC_CMD.name)[40]]
@@ -224,6 +228,7 @@ def test_lockstep_stall_is_detected(run, tmp_path):
     assert "/vega/truth stamp stalled at 10.290 s" in detail
 
 
+@pytest.mark.slow
 def test_compute_time_over_budget(run, tmp_path):
     """More than 1 % of the steps over the 12 ms budget fails the run; an isolated overrun (a
     descheduled step on a shared machine) is reported, not failed."""
@@ -281,6 +286,7 @@ def test_bad_bags_are_one_line_exit_2(good_bag, tmp_path, capsys):
     assert status == 2 and out == "" and err.count("\n") == 1 and str(corrupt) in err
 
 
+@pytest.mark.slow
 def test_foreign_bag_from_the_command_line(tmp_path, ros_env):
     """A bag with only std_msgs: one line on stderr, exit status 2 (a real `vega` process)."""
     from rosbags.rosbag2 import StoragePlugin, Writer

@@ -17,6 +17,7 @@ def run(tmp_path_factory):
     return short_run(tmp_path_factory.mktemp("run"))
 
 
+@pytest.mark.slow
 def test_report_of_a_good_run(run, tmp_path):
     bag = write_bag(tmp_path / "bag", run)
     check = report.write_report(bag, tmp_path / "report")
@@ -42,6 +43,7 @@ def test_report_of_a_good_run(run, tmp_path):
     assert "| info: " in row and "Qα sensitivity" in md
 
 
+@pytest.mark.slow
 def test_report_names_the_failure(run, tmp_path, capsys):
     def mutate(messages):
         i = messages_on(messages, topics.TRUTH.name)[200]
@@ -63,6 +65,7 @@ def test_bad_bag_writes_nothing(tmp_path):
     assert not (tmp_path / "report").exists()
 
 
+@pytest.mark.slow
 def test_plot_labels_fit_their_figures(run, tmp_path):
     """The plots are laid out with fixed margins (no tight_layout, docs/SIL_SPEED.md): every
     title, tick label, axis label and legend of every report plot lies inside its figure, and
@@ -85,6 +88,7 @@ def test_plot_labels_fit_their_figures(run, tmp_path):
         plt.close(fig)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("timeout_s", [30.0, 0.0])
 def test_forked_plots_are_the_serial_plots(run, tmp_path, monkeypatch, timeout_s):
     """Half of the plots are drawn by a forked child (report._plot): the files are the bytes

@@ -229,6 +229,7 @@ def check_against_rosbags_and_ours(bag_dir, decoded: dict) -> None:
 # --------------------------------------------------------------------------- the run bag
 
 
+@pytest.mark.slow
 def test_every_message_decodes_from_the_schema_in_the_file(bag, written):
     decoded = decoded_by_topic(bag)
     assert sorted(decoded) == sorted(t.name for t in topics.ALL_TOPICS)
@@ -237,10 +238,12 @@ def test_every_message_decodes_from_the_schema_in_the_file(bag, written):
     check_values(decoded, written[1])
 
 
+@pytest.mark.slow
 def test_values_equal_rosbags_and_our_reader(bag):
     check_against_rosbags_and_ours(bag, decoded_by_topic(bag))
 
 
+@pytest.mark.slow
 def test_channels_carry_the_rosidl_type_hash(bag):
     check_type_hashes(bag)
 
@@ -321,6 +324,7 @@ def _all_checks(bag_dir, written_messages):
     check_file_order_and_crcs(bag_dir)
 
 
+@pytest.mark.slow
 def test_an_unaltered_rewrite_passes_every_check(bag, written, tmp_path):
     """The control for the cases below: mcap's writer reproduces the bag faithfully."""
     _all_checks(_rewrite(bag, tmp_path / "same"), written[1])
@@ -369,6 +373,7 @@ def test_a_missing_or_wrong_type_hash_fails(bag, tmp_path, edit):
         check_type_hashes(altered)
 
 
+@pytest.mark.slow
 def test_a_dropped_message_fails_the_counts(bag, tmp_path):
     def drop(records):
         i = next(k for k, r in enumerate(records) if r[0] == topics.TVC_CMD.name)

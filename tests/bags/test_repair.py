@@ -38,6 +38,7 @@ def _cut(bag, tmp_path, fraction):
     return dst
 
 
+@pytest.mark.slow
 def test_the_writer_puts_run_metadata_and_chunks_on_disk_early(bag):
     meta = json.loads(bagio.run_metadata_path(bag).read_text())
     assert meta["custom_data"] == bagio.read_run_bag(bag).metadata
@@ -49,6 +50,7 @@ def test_the_writer_puts_run_metadata_and_chunks_on_disk_early(bag):
         t.name for t in bagio.topics.ALL_TOPICS)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fraction", [0.35, 0.7, 0.999])
 def test_repair_recovers_a_prefix_of_every_topic(bag, tmp_path, fraction, capsys):
     killed = _cut(bag, tmp_path, fraction)
@@ -147,6 +149,7 @@ def _channel_metadata(mcap_bytes):
     return found
 
 
+@pytest.mark.slow
 def test_channels_carry_the_rosidl_type_hash(bag):
     """Every MCAP channel has ``topic_type_hash`` = the RIHS01 hash rosidl generated for its
     type (the installed ``share/<pkg>/msg/<Type>.json``), as Jazzy's rosbag2 writes it."""

@@ -81,6 +81,7 @@ def _unpadded(wire, recorded):
     return wire[:len(recorded)]
 
 
+@pytest.mark.slow
 def test_replay_republishes_the_recorded_bytes(bag, ros_env):
     """Every message, /clock included, arrives in order with the bytes recorded."""
     expected, got, status, stderr = _receive_replay(bag, ros_env)
@@ -101,6 +102,7 @@ def test_replay_rejects_bad_input(tmp_path, capsys):
 
 
 # ----------------------------------------------------------------------------- controller check
+@pytest.mark.slow
 def test_controller_reproduces_the_recorded_commands(bag, run, capsys):
     """The installed controller node, fed the recorded INS, sends the recorded commands."""
     status = cli.main(["replay", str(bag), "--check-controller"])
@@ -111,6 +113,7 @@ def test_controller_reproduces_the_recorded_commands(bag, run, capsys):
     assert "verdict: IDENTICAL" in out
 
 
+@pytest.mark.slow
 def test_a_changed_command_is_found(run, tmp_path):
     """A recorded command that the controller does not reproduce: verdict 1, first one named."""
     def mutate(messages):
@@ -153,6 +156,7 @@ def test_first_difference_compares_all_fields():
         (1, "the controller sent 1 commands, the bag holds 2")
 
 
+@pytest.mark.slow
 def test_controller_replay_of_a_real_sil_run(run, tmp_path, capsys):
     """End to end: a short `vega sil run` (five processes), then the controller replay of
     its bag reproduces every command the SIL controller sent (the SIL regression check)."""
@@ -169,6 +173,7 @@ def test_controller_replay_of_a_real_sil_run(run, tmp_path, capsys):
     assert "50 commands replayed, 50 recorded, 50 compared" in out
 
 
+@pytest.mark.slow
 def test_controller_replay_flies_the_recorded_guidance_reference(run, tmp_path, capsys):
     """A bag of a run with the wind-biased reference (nominal cut to 40–41 s, where the
     reference is far from 0): the replayed controller tracks the reference the metadata names

@@ -183,6 +183,7 @@ def test_check_controller_hands_the_bag_to_the_controller(monkeypatch, short_bag
     assert info["guidance"] == meta.get(bagio.META_GUIDANCE_REFERENCE, "none")
 
 
+@pytest.mark.slow
 def test_check_controller_defaults_and_options(monkeypatch, short_bag):
     recorded = [bytes(d) for _, _, d in bagio.iter_raw_messages(short_bag,
                                                                 {topics.TVC_CMD.name})]
@@ -369,6 +370,7 @@ def test_the_bags_guidance_reference_is_flown(monkeypatch, run, tmp_path):
     assert info["guidance"] == str(GUIDE)
 
 
+@pytest.mark.slow
 def test_a_failure_of_the_loop_with_identical_commands_is_named_alone(monkeypatch, bag):
     recorded = _recorded(bag)
     _Shell(answer=recorded, failure=replay._Failed(1, "stalled")).install(monkeypatch)
@@ -380,6 +382,7 @@ def test_a_failure_of_the_loop_with_identical_commands_is_named_alone(monkeypatc
                                 f"the bag holds {len(recorded)}")
 
 
+@pytest.mark.slow
 def test_a_bag_without_ins_messages_is_a_bag_error(monkeypatch, run, tmp_path):
     from fixture_bags import write_bag
 

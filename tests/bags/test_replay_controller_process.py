@@ -151,6 +151,7 @@ def test_controller_wait_gives_up_and_stop_ends_it(fake_controller, tmp_path):
         assert controller.failure() == "tvc_controller ended with killed by SIGTERM"
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 def test_installed_controller_reads_its_parameters(tmp_path):
     """The real tvc_controller, nobody publishing /vega/run: it gives up after the barrier

@@ -13,6 +13,8 @@ nanoseconds.
 
 from types import SimpleNamespace
 
+import pytest
+
 from load_scaling import budget_s
 from vega_bags import replay
 
@@ -135,6 +137,7 @@ def test_feed_start_barrier_failures():
     assert str(loop.feed(raw)) == "start barrier: tvc_controller not seen"
 
 
+@pytest.mark.slow
 def test_feed_a_stalled_controller(monkeypatch):
     monkeypatch.setattr(replay, "STALL_TIMEOUT_S", 0.3)
     raw, samples = _ins(6)

@@ -139,6 +139,7 @@ def _check(monkeypatch, capsys, bag, answer, failure=None):
     return code, out, recorded
 
 
+@pytest.mark.slow
 def test_check_of_the_recorded_commands_is_identical(monkeypatch, capsys, bag):
     """Control case: the faked plumbing gives IDENTICAL when the answer is the recording."""
     code, out, recorded = _check(monkeypatch, capsys, bag, lambda rec: list(rec))
@@ -159,6 +160,7 @@ def test_check_with_more_commands_than_the_bag_is_different(monkeypatch, capsys,
     assert f"{n + extra} commands replayed, {n} recorded, {n} compared" in out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("missing", [1, 5])
 def test_check_with_fewer_commands_than_the_bag_is_different(monkeypatch, capsys, bag, missing):
     code, out, recorded = _check(monkeypatch, capsys, bag, lambda rec: list(rec)[:-missing])

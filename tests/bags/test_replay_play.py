@@ -218,6 +218,7 @@ def test_bad_rate_is_refused_before_the_bag_is_read(rate, tmp_path):
         replay.play(tmp_path / "no_bag", rate)
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 def test_everything_in_order_at_full_speed(tiny_bag, tiny_raw, listener, monkeypatch):
     """rate 0: after waiting for the listener, every message on its topic, in order, bytes as
@@ -257,6 +258,7 @@ def test_everything_in_order_at_full_speed(tiny_bag, tiny_raw, listener, monkeyp
     assert [c.sec * 1_000_000_000 + c.nanosec for c in clocks] == TINY_CLOCKS_NS
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 def test_publishers_are_node_vega_replay_with_the_topic_qos(tiny_bag, listener):
     """The graph while play runs (looked at from its first ``stop`` poll): node
@@ -284,6 +286,7 @@ def test_publishers_are_node_vega_replay_with_the_topic_qos(tiny_bag, listener):
         assert pub.qos_profile.durability == DurabilityPolicy.VOLATILE
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 def test_paced_by_the_log_times(tiny_bag, listener):
     """rate 0.5: a message (and the /clock of its log time) arrives no earlier than
@@ -310,6 +313,7 @@ def test_paced_by_the_log_times(tiny_bag, listener):
             assert at >= when, (name, k, at, when)
 
 
+@pytest.mark.slow
 def test_default_rate_is_real_time_and_no_wait(tiny_bag):
     """Defaults: rate 1 (the replay lasts at least the span), no wait for subscribers (nothing
     said although nobody listens), publishers made without a subscriber are no error."""
@@ -327,6 +331,7 @@ def test_default_rate_is_real_time_and_no_wait(tiny_bag):
         assert polls.times[k] - t_call >= (TINY[k - 1][1] - T0_NS) / 1e9
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 def test_missing_subscribers_are_named_after_the_wait(tiny_bag, listener):
     """wait_subscribers_s=0.4 with a subscriber on /vega/ins only: it waits 0.4 s, polling
@@ -359,6 +364,7 @@ def test_missing_subscribers_without_progress_callback(tiny_bag):
     assert result.counts == TINY_COUNTS
 
 
+@pytest.mark.slow
 def test_stop_ends_the_wait_for_subscribers(tiny_bag):
     """Nobody listens, 30 s allowed: ``stop`` turning True after 0.2 s ends the wait (and,
     still True, the replay before its first message)."""
@@ -390,6 +396,7 @@ def test_stop_between_messages(tiny_bag, stop_at, counts, span_ns):
     assert result.wall_s >= 0.0
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 def test_real_run_bag_is_republished_byte_for_byte(run_bag, listener):
     """A real run bag (with /clock): every topic, every message in order with the recorded

@@ -52,6 +52,7 @@ def _same(a, b):
             assert x == y or (isinstance(x, float) and math.isnan(x) and math.isnan(y))
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(record=_records(), frame_id=st.sampled_from(["", "b", "base_link", "tvc_controller"]))
 def test_bytes_are_the_serialisers_bytes(record, frame_id):

@@ -124,12 +124,14 @@ def typestore():
     return store
 
 
+@pytest.mark.slow
 def test_publisher_exits_cleanly(exchange):
     """The publishing process shut down on SIGTERM without an error."""
     assert exchange["publisher_returncode"] == 0, exchange["publisher_stderr"]
     assert "Traceback" not in exchange["publisher_stderr"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("type_name", msg_samples.TYPE_NAMES)
 def test_every_field_arrives_equal(exchange, type_name):
     """The typed message received in this process equals the sample, field by field."""
@@ -137,6 +139,7 @@ def test_every_field_arrives_equal(exchange, type_name):
         msg_samples.SAMPLES[type_name]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("type_name", msg_samples.TYPE_NAMES)
 def test_wire_bytes_decode_in_rclpy(exchange, type_name):
     """The raw CDR bytes received decode, with rclpy, to the sample."""

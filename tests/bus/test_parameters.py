@@ -45,6 +45,7 @@ def _calls(attribute: str):
 
 
 # ----------------------------------------------------------------------------- table use
+@pytest.mark.slow
 def test_every_parameter_a_node_declares_is_in_the_table():
     names = set()
     for path, arg in _calls("param"):
@@ -110,6 +111,7 @@ def _ask(context, executor, node, service_type, service: str, request, timeout_s
         node.destroy_client(client)
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 def test_running_nodes_describe_their_parameters(ros_env, tmp_path):
     """Each node, waiting for its peers, lists exactly the table's parameters it uses and

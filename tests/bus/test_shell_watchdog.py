@@ -58,6 +58,7 @@ def _release(proc):
     return proc.communicate(input="", timeout=budget_s(30.0))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("code", [0, 1])
 def test_hanging_teardown_exits_with_the_runs_code(code):
     script = textwrap.dedent(f"""
@@ -79,6 +80,7 @@ def test_hanging_teardown_exits_with_the_runs_code(code):
     assert result.stderr == "plant: middleware shutdown hung for 0.5 s; exiting without it\n"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("short", [False, True])
 def test_normal_teardown_is_not_cut_short(short):
     """A close of 0.1 s: neither the watchdog thread nor the GIL-free exit timer ends the
@@ -110,6 +112,7 @@ def test_normal_teardown_is_not_cut_short(short):
     assert result.returncode == 0 and result.stdout == line + "\n" and result.stderr == ""
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("code, status", [(0, 0), (1, 1), (2, 2)])
 def test_teardown_hanging_with_the_gil_held_still_ends_with_its_stacks(code, status):
     """The watchdog thread needs the GIL; a teardown blocked in C holding it (here: a long
@@ -141,6 +144,7 @@ def test_teardown_hanging_with_the_gil_held_still_ends_with_its_stacks(code, sta
     assert "in close" in result.stderr and "middleware shutdown hung" not in result.stderr
 
 
+@pytest.mark.slow
 def test_the_exit_timer_ends_the_process_with_its_code_while_the_gil_is_held():
     script = textwrap.dedent("""
         import vega_bus.shell as shell
@@ -190,6 +194,7 @@ def test_a_node_writes_its_stacks_on_request_and_goes_on():
     assert "Current thread" in err and "in waiting_for_the_final_report" in err, err
 
 
+@pytest.mark.slow
 def test_the_orchestrator_asks_a_hung_node_for_its_stacks():
     """vega_bringup.orchestrate: a node still running long after the others is asked for its
     stacks (SIGUSR1) before it is stopped, so that its log says where it hung. (The test ends

@@ -124,6 +124,7 @@ def test_ros_env_fixture_keeps_the_run_domain(ros_env, ros_domain_id):
 
 # (b) children started through the real entry points --------------------------------------------
 
+@pytest.mark.slow
 def test_vega_sets_environment_from_bare_shell(tmp_path):
     """``.venv/bin/vega`` by absolute path, no venv active, hostile ROS settings: fixed."""
     result = _run([VEGA, "--print-env"], _bare_env(**_HOSTILE), cwd=tmp_path)
@@ -139,6 +140,7 @@ def test_vega_sets_environment_from_bare_shell(tmp_path):
     assert any(Path(prefix).name == "vega_msgs" for prefix in prefixes)
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 def test_vega_node_runs_executable_in_project_environment(tmp_path, probe_prefix):
     """``vega node PKG EXE ARGS`` finds EXE through the ament index, passes ARGS through, and
@@ -158,6 +160,7 @@ def test_vega_node_runs_executable_in_project_environment(tmp_path, probe_prefix
     assert "ROS_DOMAIN_ID=101 (the default for nodes started by hand" in result.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 def test_vega_node_keeps_caller_domain(tmp_path, probe_prefix):
     """A caller's ROS_DOMAIN_ID is what the node uses, and no note is printed."""
@@ -168,6 +171,7 @@ def test_vega_node_keeps_caller_domain(tmp_path, probe_prefix):
     assert "ROS_DOMAIN_ID" not in result.stderr
 
 
+@pytest.mark.slow
 def test_vega_env_runs_command_in_project_environment(tmp_path):
     """``vega-env CMD``: the project environment, the workspace on the path, LOCALHOST."""
     code = ("import json, os, vega_msgs.msg; print(json.dumps({n: os.environ.get(n) for n in "
@@ -183,6 +187,7 @@ def test_vega_env_runs_command_in_project_environment(tmp_path):
 
 # (c) one domain id per invocation ---------------------------------------------------------------
 
+@pytest.mark.slow
 def test_invocations_get_different_domain_ids(tmp_path):
     """Invocations without a caller's ROS_DOMAIN_ID get different ids (vega and vega-env)."""
     ids = []
@@ -196,6 +201,7 @@ def test_invocations_get_different_domain_ids(tmp_path):
     assert len(set(ids)) == len(ids), ids
 
 
+@pytest.mark.slow
 def test_caller_domain_id_is_kept(tmp_path):
     """With ROS_DOMAIN_ID set by the caller, every invocation uses it."""
     for command in ([VEGA, "--print-env"], [VEGA, "--print-env"]):
@@ -204,6 +210,7 @@ def test_caller_domain_id_is_kept(tmp_path):
         assert _printed_env(result.stdout)["ROS_DOMAIN_ID"] == "42"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("value", ["0", "102", "seven", "-1"])
 def test_bad_caller_domain_id_is_rejected(tmp_path, value):
     """A caller's ROS_DOMAIN_ID outside 1..101 is an error of one line, exit status 2."""

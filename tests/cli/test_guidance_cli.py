@@ -10,6 +10,7 @@ from vega_cli import cli
 from vega_gnc.guidance_reference import load_guidance_reference
 
 
+@pytest.mark.slow
 def test_writes_a_reference_the_flight_side_loads(tmp_path, capsys):
     out, plot = tmp_path / "ref.npz", tmp_path / "figs" / "ref.png"
     assert cli.main(["guidance", "--out", str(out), "--plot", str(plot),

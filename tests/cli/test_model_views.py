@@ -33,6 +33,7 @@ def test_linearize_json_single_time(capsys):
     assert rec["parameters"]["f1_hz"] == pytest.approx(4.71 + 0.47 * 1.18)
 
 
+@pytest.mark.slow
 def test_linearize_range_through_the_installed_command():
     """The real `vega` wrapper (as users run it): one process, a JSON list of 9 models."""
     vega = REPO / ".venv" / "bin" / "vega"
@@ -68,6 +69,7 @@ def test_range_parsing_includes_stop():
     assert is_range and len(times) == 11 and times[-1] == 1.0
 
 
+@pytest.mark.slow
 def test_plots_model_writes_pngs(tmp_path, capsys):
     assert cli.main(["plots", "model", "--out", str(tmp_path)]) == 0
     for name in ("bode_theta_ins_beta.png", "pole_zero.png"):

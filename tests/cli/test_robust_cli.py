@@ -25,6 +25,7 @@ def test_bad_arguments(tmp_path, capsys, args, message):
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_one_time_end_to_end(tmp_path, capsys):
     code = cli.main(["robust", "--at", "50", "--out", str(tmp_path)])
     out = capsys.readouterr().out
@@ -51,6 +52,7 @@ def test_one_time_end_to_end(tmp_path, capsys):
     assert Path(tmp_path / "mu_max_q.png").stat().st_size > 10_000
 
 
+@pytest.mark.slow
 def test_no_mu_skips_the_upper_bound(tmp_path, capsys):
     code = cli.main(["robust", "--at", "90", "--no-mu", "--out", str(tmp_path)])
     out = capsys.readouterr().out

@@ -97,6 +97,7 @@ sys.exit(cli.main(["sil", "run", "--scenario", "/dev/zero", "--out", sys.argv[1]
 """
 
 
+@pytest.mark.slow
 def test_dev_zero_scenario_is_refused_at_once(tmp_path):
     """``--scenario /dev/zero`` (size 0, endless): one line naming it, exit 2, quickly and
     without eating memory (a child process bounded to 2 GiB and 120 s)."""

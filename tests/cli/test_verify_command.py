@@ -88,6 +88,7 @@ def test_campaign_failures_counted_per_requirement_from_a_hand_summary():
     assert (f["runs"], f["passed"], f["unstable"], f["reference_passed"]) == (10, 6, 0, 746)
 
 
+@pytest.mark.slow
 def test_a_short_real_sign_off_reports_and_gates(tmp_path, capsys):
     """Margins at max-Q (43 s) with every dispersed corner, then a two-flight campaign against a
     reference of three passes: the margins pass, the campaign cannot reach its reference, so
@@ -139,6 +140,7 @@ def test_a_table_changed_while_the_checks_run_is_not_signed_off(tmp_path, monkey
     assert "changed while the checks ran: not signed off" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_a_held_out_seed_is_flown_on_the_reference_samples_and_reported(tmp_path, capsys):
     """A two-flight campaign of the shipped table on seed 5 is the held-out reference; the
     verification flies the table on its samples and compares them flight by flight: the same

@@ -102,6 +102,7 @@ def test_a_fifo_is_refused_before_it_is_opened(tmp_path):
         "regular file)"], done
 
 
+@pytest.mark.slow
 def test_a_fifo_scenario_is_one_line_and_exit_2(tmp_path):
     """The same through the CLI: `vega sil run --scenario FIFO`, exit 2, one line."""
     fifo = tmp_path / "pipe.yaml"
@@ -113,6 +114,7 @@ def test_a_fifo_scenario_is_one_line_and_exit_2(tmp_path):
     assert done.stderr.count("\n") == 1 and "a FIFO or socket" in done.stderr, done.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("text", ["[" * 100_000, "a:\n" + "- " * 50_000 + "x\n",
                                   "{a: " * 100_000])
 def test_yaml_nested_too_deeply_is_one_line(text):
@@ -154,6 +156,7 @@ def test_libyaml_and_the_python_loader_build_the_same_trees_for_the_project_file
     assert short >= 8
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("unit", ["[", "- ", "{a: "])
 def test_the_deepest_text_libyaml_gets_parses_in_a_thread_too(unit):
     """A text of C_PARSER_MAX_CHARS characters nested as deep as it can (one level per

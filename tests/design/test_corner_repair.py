@@ -94,6 +94,7 @@ def context():
     return default_context()
 
 
+@pytest.mark.slow
 def test_the_undone_43s_edit_is_found_and_repaired(context):
     done, i, edit = _done_before_43_edit()
     rows = R.check_intervals(context, done, CORNERS, workers=0)
@@ -129,6 +130,7 @@ def _uset(context):
     return UncertaintySet.from_vehicle(context.vehicle)
 
 
+@pytest.mark.slow
 def test_no_edit_when_no_candidate_acts_on_the_missed_mode(context, monkeypatch):
     """Mode-1 misses and only mode-2 edits to try: nothing changes, the misses are reported."""
     done, _, _ = _done_before_43_edit()
@@ -138,6 +140,7 @@ def test_no_edit_when_no_candidate_acts_on_the_missed_mode(context, monkeypatch)
     assert all(np.array_equal(new[t][0], done[t][0]) for t in done)
 
 
+@pytest.mark.slow
 def test_the_worst_case_check_refuses_an_edit_that_loses_it(context, monkeypatch):
     """A worst-case check that passes for the unedited tables only: every repair refused (the
     first-notch edits only, one round: the refusal path, not the search, is under test)."""
@@ -164,6 +167,7 @@ def test_units_hold_the_tail_off_together():
     assert R.units_of([84.0, 87.0, 90.0], 86.0) == [(84.0,), (87.0, 90.0)]
 
 
+@pytest.mark.slow
 def test_the_tail_off_hold_is_edited_as_one(context):
     """Misses flown by the held tail-off controller (here: the hold from 43 s, the 44 s point
     holding the 43 s parameters) are repaired by one edit of every point of the hold; a point

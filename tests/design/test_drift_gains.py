@@ -102,6 +102,7 @@ def test_a_bad_schedule_is_one_line_naming_the_file(tmp_path, text, message):
     assert "\n" not in str(err.value)
 
 
+@pytest.mark.slow
 def test_tuning_holds_the_pinned_gains_and_tunes_the_rest(context):
     uset = UncertaintySet.from_vehicle(context.vehicle)
     ds = S.design_set(context, 40.0, uset)
@@ -124,6 +125,7 @@ def test_tuning_holds_the_pinned_gains_and_tunes_the_rest(context):
     assert cost == S.evaluate(rel, ds)
 
 
+@pytest.mark.slow
 def test_a_short_design_holds_the_schedule_at_every_grid_point(context):
     rows = ((40.0, -0.5, -20.0), (50.0, -1.5, -60.0))
     design = S.design_flight(context, anchors_s=(46.0, 50.0), grid_step_s=2.0, maxiter=1,
@@ -136,6 +138,7 @@ def test_a_short_design_holds_the_schedule_at_every_grid_point(context):
     assert (design.x[1][2], design.x[1][3]) == (-1.3, -52.0)        # 48 s, interpolated
 
 
+@pytest.mark.slow
 def test_a_short_design_holds_the_schedule_per_unit_k_theta(context):
     sched = S.DriftSchedule(((40.0, -0.5, -20.0), (50.0, -1.5, -60.0)))
     design = S.design_flight(context, anchors_s=(46.0, 50.0), grid_step_s=2.0, maxiter=1,
@@ -149,6 +152,7 @@ def test_a_short_design_holds_the_schedule_per_unit_k_theta(context):
     assert len({round(float(x[0]), 12) for x in design.x}) > 1       # k_θ differs per point
 
 
+@pytest.mark.slow
 def test_the_tail_off_tuning_holds_the_pinned_gains(context):
     meta = json.loads(str(np.load(STRUCTURED_2026_11_27)["metadata"]))
     by = dict(zip(meta["grid_times_s"], meta["parameters_per_grid_time"]))

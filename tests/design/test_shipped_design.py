@@ -43,6 +43,7 @@ def test_structured_and_whole_flight(table, context):
     assert all(table.metadata["controller_stable"])
 
 
+@pytest.mark.slow
 def test_every_nominal_frozen_loop_is_stable(table, context):
     rows = M.frozen_stability(table, context, M.default_times())
     assert not any(r["clamped"] for r in rows)
@@ -67,6 +68,7 @@ def test_nominal_heritage_margins(table, context, t_s):
                                                    "b1_peak_db", "b2_peak_db")})
 
 
+@pytest.mark.slow
 def test_bending_edges_and_table_2_3_inertia_stable_at_max_q(table, context):
     from vega_model.uncertainty import UncertaintySet
 
@@ -84,6 +86,7 @@ def test_bending_edges_and_table_2_3_inertia_stable_at_max_q(table, context):
     assert np.all(np.isfinite([r["max_abs_eig"] for r in rows]))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("t_s", [0.5, 34.5, 43.0, 58.0, 60.0])
 def test_exact_bending_criterion_at_the_dispersed_bending_corners(table, context, t_s):
     """At the times where the exact heritage bending criterion is hardest to meet at a dispersed

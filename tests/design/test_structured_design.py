@@ -105,6 +105,7 @@ def ds50(context, uset):
     return S.design_set(context, 50.0, uset)
 
 
+@pytest.mark.slow
 def test_cost_radius_is_the_exact_sampled_data_verdict(context, ds50):
     from vega_model.actuator import ActuatorParams
     from vega_loops.margins import total_delay_s
@@ -123,6 +124,7 @@ def test_cost_radius_is_the_exact_sampled_data_verdict(context, ds50):
     assert detail["n_unstable"] == 0
 
 
+@pytest.mark.slow
 def test_a_weak_controller_is_penalised_as_unstable(ds50):
     # k_θ = 0.05 cannot hold the aerodynamically unstable vehicle at max-Q
     cost, detail = S.evaluate(_x(log10_k_theta=math.log10(0.05)), ds50, detail=True)
@@ -132,6 +134,7 @@ def test_a_weak_controller_is_penalised_as_unstable(ds50):
     assert good < cost
 
 
+@pytest.mark.slow
 def test_an_unfiltered_bending_mode_is_flagged(ds50):
     # both low-passes at 100 rad/s, no notch depth: the rate gyro sees mode 1 at full gain
     x = _x(log10_lp1_radps=2.0, log10_lp2_radps=2.0, lp1_zeta=1.0, lp2_zeta=1.0,
@@ -142,6 +145,7 @@ def test_an_unfiltered_bending_mode_is_flagged(ds50):
     assert detail["penalty"] > good["penalty"]
 
 
+@pytest.mark.slow
 def test_short_design_and_export(context, tmp_path):
     from vega_gnc.controller_table import load_controller_table
 
@@ -191,6 +195,7 @@ def test_search_returns_the_point_it_evaluated_inside_the_box():
     assert fun(x) <= fun(x0) + 1e-9 and fun(x) == pytest.approx(0.25, abs=1e-3)
 
 
+@pytest.mark.slow
 def test_tail_cost_is_the_worst_time_plus_a_tenth_of_the_mean(context):
     from vega_model.uncertainty import UncertaintySet
 
@@ -201,6 +206,7 @@ def test_tail_cost_is_the_worst_time_plus_a_tenth_of_the_mean(context):
     assert S.tail_cost(x, sets) == pytest.approx(max(c) + 0.05 * (c[0] + c[1]), rel=1e-12)
 
 
+@pytest.mark.slow
 def test_hold_tail_holds_one_controller_and_keeps_the_rest(context):
     """Step 5 on the grid points of a whole table: one controller from the tail-off hold time on,
     every grid point before it untouched."""
@@ -227,6 +233,7 @@ def test_hold_tail_holds_one_controller_and_keeps_the_rest(context):
     assert S.tail_cost(x[tail][0], sets) <= S.tail_cost(x86, sets) + 1e-12
 
 
+@pytest.mark.slow
 def test_tail_tuning_counts_the_flown_transition_from_the_left_grid_point(context):
     from vega_gnc.controller_table import load_controller_table
     from vega_model.uncertainty import UncertaintySet
@@ -246,6 +253,7 @@ def test_tail_tuning_counts_the_flown_transition_from_the_left_grid_point(contex
     assert cost == pytest.approx(full, rel=1e-12)
 
 
+@pytest.mark.slow
 def test_loader_rules_for_structured_tables(context, tmp_path):
     """NaN γ only in a structured table; a structured table with a γ, an LPV table without
     one and an unknown design are refused in one line."""
@@ -303,6 +311,7 @@ def _shipped_points(*times):
     return {t: by_time[t] for t in times}
 
 
+@pytest.mark.slow
 def test_step4_adds_a_point_only_where_it_beats_the_flown_controller(context, uset,
                                                                       monkeypatch):
     """Step 4's guard: between the 44 and 46 s points of the reference table the flown

@@ -57,6 +57,7 @@ def unscaled():
     return _shipped_unscaled((68.0, 70.0, 72.0))
 
 
+@pytest.mark.slow
 def test_scaled_from_70_s_and_nothing_else(context, unscaled):
     """×2: k_ż doubled at 70 and 72 s (both meet every requirement scaled, and `vega robust`'s
     worst case meets the bending criterion at 68.5–72 s), 68 s untouched, every other parameter
@@ -74,6 +75,7 @@ def test_scaled_from_70_s_and_nothing_else(context, unscaled):
         assert not S.misses_requirement(out[t][1])
 
 
+@pytest.mark.slow
 def test_a_scaled_point_that_misses_a_requirement_stays_unscaled(context, unscaled):
     """×50 (inside the search box: |k_ż| ≤ 5 mrad/(m/s)) costs the low-frequency gain margin
     (< 6 dB): the unscaled parameters stay, and the report says why."""
@@ -99,6 +101,7 @@ def test_scaled_gain_outside_the_box_is_an_error(context, unscaled):
         S.scale_drift(context, unscaled, factor, from_s=70.0)
 
 
+@pytest.mark.slow
 def test_a_point_missing_a_requirement_unscaled_is_scaled_when_no_worse(context):
     """82 s of the shipped table misses the exact bending criterion at one dispersed design
     plant with and without the scaling (the shipped design's known gap): the scaling adds no
@@ -135,6 +138,7 @@ def test_pair_table_flies_what_the_whole_table_flies(context):
     assert S._pair_table(context, (82.0, by_time[82.0]), (80.0, by_time[80.0])) is None
 
 
+@pytest.mark.slow
 def test_the_rule_refuses_points_whose_worst_case_bending_criterion_would_be_missed(context):
     """Before the hand edits, k_ż × 2 at 80 and 82 s met every design-set requirement but left
     `vega robust`'s worst case at 81.5 s 0.011 dB short of the 6 dB bending criterion
@@ -158,6 +162,7 @@ def test_the_rule_refuses_points_whose_worst_case_bending_criterion_would_be_mis
         assert old_rule[t][0][S.DRIFT_RATE_INDEX] == 2.0 * given[t][0][S.DRIFT_RATE_INDEX]
 
 
+@pytest.mark.slow
 def test_with_the_deeper_82_s_notch_the_rule_keeps_the_scaling(context):
     """The shipped table's hand edit (82 s: notch1_zeta_num 0.0467 -> 0.040, recorded in
     ``solver.edits``) lets the worst case meet the bending criterion at 80.5-82 s with k_ż × 2

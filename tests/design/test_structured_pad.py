@@ -46,6 +46,7 @@ def sets(context):
     return S.design_set(context, 0.5, uset), S.design_set(context, 2.0, uset), uset
 
 
+@pytest.mark.slow
 def test_the_first_grid_point_is_designed_on_the_bending_plants_at_0s(sets):
     first, later, uset = sets
     bending = [d for _, fam, d in S.design_deviations(uset) if fam == "bending"]
@@ -68,6 +69,7 @@ def _subset(ds, keep):
         templates=None, pad=ds.pad[idx])
 
 
+@pytest.mark.slow
 def test_the_seed1_point_misses_only_at_0s_and_the_margin_tool_agrees(sets, context):
     first, _, uset = sets
     _, without_pad = S.evaluate(SEED1_05, _subset(first, ~first.pad), detail=True)
@@ -86,6 +88,7 @@ def test_the_seed1_point_misses_only_at_0s_and_the_margin_tool_agrees(sets, cont
     assert row["n_unstable"] > 0 and 1.0001 < row["max_abs_eig"] < 1.001
 
 
+@pytest.mark.slow
 def test_pad_plants_count_no_slow_mode_penalty(sets):
     """Without thrust the rigid-body poles stay at z = 1 for any controller: the pad plants
     would add a fixed slow-mode penalty (100 × 1e-4 each) that no tuning can remove."""
@@ -102,6 +105,7 @@ def test_pad_plants_count_no_slow_mode_penalty(sets):
     assert d["penalty_terms"]["slow_modes"] == flying["penalty_terms"]["slow_modes"]
 
 
+@pytest.mark.slow
 def test_step_7_checks_the_times_before_the_first_grid_point(context):
     assert R.interval_times(0.5, 2.0, first=True) == [0.0, 0.5, 1.0, 1.5, 2.0]
     assert R.interval_times(2.0, 4.0, first=True) == [2.0, 2.5, 3.0, 3.5, 4.0]

@@ -145,6 +145,7 @@ def test_relief_sign_lowers_the_wind_alpha_gain(context):
     assert gain(+5.0) > g0 + 0.05
 
 
+@pytest.mark.slow
 def test_load_objective_in_the_cost(context):
     from vega_model.uncertainty import UncertaintySet
 
@@ -162,6 +163,7 @@ def test_load_objective_in_the_cost(context):
     assert relief["wind_alpha_gain"] < detail["wind_alpha_gain"] - 0.05
 
 
+@pytest.mark.slow
 def test_load_metric_mean_counts_the_whole_band(context):
     """The mean figure is the mean of |V·α/v_w| over the band's frequencies, below the peak;
     an unknown metric is refused."""

@@ -115,6 +115,7 @@ def test_the_code_digest_follows_the_code_files_not_the_caches(tmp_path, monkeyp
     assert J.code_digest() != changed
 
 
+@pytest.mark.slow
 def test_pool_map_reuses_journalled_results_and_records_the_others(tmp_path):
     """The spawned-process path: the journal holds a (deliberately wrong) result for 9.0, so a
     -1 can only come from the journal; 4.0 and 16.0 are computed and recorded."""
@@ -133,6 +134,7 @@ class _Stop(Exception):
     pass
 
 
+@pytest.mark.slow
 def test_an_interrupted_design_resumes_to_the_uninterrupted_result(tmp_path):
     """Two anchors (40 and 44 s, 1 generation) and a 2 s grid: the anchors, the walk of 42 s
     and whatever steps 3-4 tune. Interrupted at its first progress line (the first anchor

@@ -128,12 +128,14 @@ def gain_table(tmp_path_factory):
     return write_gain_table(tmp_path_factory.mktemp("prop") / "gain.npz")
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(steps=st.lists(_step(), min_size=1, max_size=40))
 def test_any_input_sequence_flight_table(flight_table, steps):
     _check_sequence(flight_table, steps)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(steps=st.lists(_step(), min_size=1, max_size=40))
 def test_any_input_sequence_gain_table(gain_table, steps):

@@ -163,6 +163,7 @@ def test_check_table_stabilises_refuses_inside_the_grid(table, context, t_end, s
 
 
 # ----------------------------------------------------------------------------- the sweep
+@pytest.mark.slow
 def test_sweep_in_process_progress_and_rows(context):
     """41 times, one plant each, in this process: 21 progress lines (every 41 // 20 = 2nd
     time, and the last), rows by time, the nominal corner."""
@@ -222,6 +223,7 @@ def test_sweep_progress_every_time_for_few_times_and_the_elapsed_time():
     assert 0.0 < res["run_time_s"] <= wall
 
 
+@pytest.mark.slow
 def test_sweep_in_worker_processes_matches_the_in_process_sweep():
     """One spawned worker (the parent does not load the table itself): the same rows as the
     in-process sweep, by time, and a progress line per time counted from 1."""

@@ -155,6 +155,7 @@ def test_loop_data_by_hand(table, context):
 
 
 # ------------------------------------------------------------------------ the frozen loop
+@pytest.mark.slow
 def test_frozen_loop_margins_against_verification_loop_margins(table, context):
     """Nominal loops at 30 and 60 s: this module's loop (discrete controller, exact hold and
     delay) and verification.loop_margins (continuous controller of the same table, Padé-2

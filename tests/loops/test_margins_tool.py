@@ -284,6 +284,7 @@ def test_flown_controller_is_what_the_runtime_flies(which, table, tmp_path):
 
 
 # -------------------------------------------------------- the assembly vs loop_margins
+@pytest.mark.slow
 def test_plant_assembly_agrees_with_verification_loop_margins(table, context):
     """verification.loop_margins (plant_for_simulation: its own actuator and Padé-2 delay in
     the interconnection, continuous controller, no hold) and this module's independent
@@ -370,6 +371,7 @@ def test_cli_bad_arguments_exit_2_one_line(argv, needle, capsys):
     assert err.count("\n") == 1
 
 
+@pytest.mark.slow
 def test_cli_short_range_writes_files(tmp_path, capsys):
     from vega_cli import cli
 
@@ -393,6 +395,7 @@ def test_cli_short_range_writes_files(tmp_path, capsys):
         assert (out / name).stat().st_size > 10_000
 
 
+@pytest.mark.slow
 def test_cli_dispersed_one_time(tmp_path, capsys):
     from vega_cli import cli
 

@@ -247,6 +247,7 @@ def test_state_scaling_balances_and_preserves_the_transfer(m40):
     assert np.linalg.cond(np.linalg.eig(mb.A)[1]) < np.linalg.cond(np.linalg.eig(m40.A)[1])
 
 
+@pytest.mark.slow
 def test_thesis_gamma_at_40s_and_independent_checks(m40):
     """γ_LTI (thesis weights, t = 40 s): our measured value ±5 %, verified three ways."""
     r = frozen_point_gamma(m40)

@@ -17,6 +17,9 @@ from vega_lpv.certificate import certificate_check, closed_loop, hinf_norm
 from vega_lpv.gridded_plant import GriddedPlant, PlantPoint
 from vega_lpv.lpv_synthesis import synthesize
 
+# every test here shares a module fixture that takes seconds (a solve or a flight)
+pytestmark = pytest.mark.slow
+
 RHO = np.linspace(1.0, 3.0, 5)
 RATES = (-0.5, 0.5)
 POSITIVE_RATES = (0.1, 0.6)          # all-positive box as in the thesis: ρ̇ = 0 is no vertex

@@ -84,6 +84,7 @@ def case(request):
     return plant, float(gamma_ref), synthesize(plant, basis="constant")
 
 
+@pytest.mark.slow
 def test_gamma_matches_hinfsyn(case):
     _, gamma_ref, result = case
     assert result.gamma_min == pytest.approx(gamma_ref, rel=1e-2)
@@ -91,6 +92,7 @@ def test_gamma_matches_hinfsyn(case):
     assert result.gamma == pytest.approx(1.2 * result.gamma_min, rel=1e-12)
 
 
+@pytest.mark.slow
 def test_controller_meets_gamma_on_original_plant(case):
     plant, _, result = case
     A_cl, B_cl, C_cl, D_cl = closed_loop(plant.point(0), result.controller(0.0, 0.0))
@@ -98,6 +100,7 @@ def test_controller_meets_gamma_on_original_plant(case):
     assert hinf_norm(A_cl, B_cl, C_cl, D_cl) <= result.gamma * (1.0 + 1e-3)
 
 
+@pytest.mark.slow
 def test_solver_answer_passed_the_independent_checks(case):
     _, _, result = case
     assert result.lmi_max_eig["stage1"] < 0.0 and result.lmi_max_eig["stage2"] < 0.0
@@ -105,6 +108,7 @@ def test_solver_answer_passed_the_independent_checks(case):
     assert set(result.statuses.values()) <= {"optimal", "optimal_inaccurate"}
 
 
+@pytest.mark.slow
 def test_hinf_norm_matches_dense_frequency_sweep():
     P, n_y, n_u = _mixed_sensitivity()
     plant = _single_point(P, n_y, n_u)

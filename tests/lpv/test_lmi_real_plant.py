@@ -16,6 +16,7 @@ from vega_lpv.weights import WEIGHT_SETS
 from vega_model.parameters import default_context
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("t", GRID_TIMES_S)
 def test_single_point_lmi_matches_sb10ad(t):
     m = weighted_plant(t, WEIGHT_SETS["shipped"], default_context())

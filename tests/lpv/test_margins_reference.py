@@ -210,6 +210,7 @@ def test_hand_reference_agrees_with_python_control_and_closed_loop_roots():
     assert loop.is_lower_limit(g_lo) and loop.is_upper_limit(g_hi)
 
 
+@pytest.mark.slow
 def test_conditionally_stable_loop_default_grid(monkeypatch):
     """The report's call (default grid): every number against the hand derivation."""
     hand = _hand_conditional()
@@ -229,6 +230,7 @@ def test_conditionally_stable_loop_default_grid(monkeypatch):
     assert d["t_s"] == 40.0
 
 
+@pytest.mark.slow
 def test_conditionally_stable_loop_dense_grid_is_tight(monkeypatch):
     """With a dense frequency grid the sampling error vanishes: 5e-4 relative (5 grid steps)."""
     hand = _hand_conditional()
@@ -239,6 +241,7 @@ def test_conditionally_stable_loop_dense_grid_is_tight(monkeypatch):
     assert m.crossover_radps == pytest.approx(hand["wc"], rel=5e-4)
 
 
+@pytest.mark.slow
 def test_margins_mean_what_they_say_for_the_closed_loop(monkeypatch):
     """Scaling the loop by the reported factors puts the closed loop on the stability boundary:
     just inside both margins stable, just outside unstable (roots of den + g·num)."""
@@ -247,6 +250,7 @@ def test_margins_mean_what_they_say_for_the_closed_loop(monkeypatch):
     assert loop.is_lower_limit(m.gm_low) and loop.is_upper_limit(m.gm_high)
 
 
+@pytest.mark.slow
 def test_open_loop_stable_textbook_loop(monkeypatch):
     """L = 2/(s(s+1)(s+2)): phase −180° at ω = √2 where |L| = 2/6, so GM = 3 (9.54 dB) and no
     lower limit; |L| = 1 at x = ω² root of x³ + 5x² + 4x − 4 = 0; PM = 180° − 90° − atan ω −
@@ -267,6 +271,7 @@ def test_open_loop_stable_textbook_loop(monkeypatch):
     assert dense.pm_deg == pytest.approx(pm, abs=5e-3)
 
 
+@pytest.mark.slow
 def test_bending_peaks_are_the_maximum_in_each_window(monkeypatch):
     """Two resonances (ω1 = 150, ω2 = 400 rad/s, peaks of different height): the reported
     gain is the MAXIMUM of |L| within ±20 % of each bending frequency of the parameters,
@@ -299,6 +304,7 @@ def test_bending_peaks_are_the_maximum_in_each_window(monkeypatch):
     assert m.pm_deg == pytest.approx(gain[0][1], abs=0.3)
 
 
+@pytest.mark.slow
 def test_phase_margin_is_the_smallest_over_all_gain_crossovers(monkeypatch):
     """A resonance at 12 rad/s that rises above 0 dB (a phase-stabilised mode) adds gain and
     phase crossovers. Closed loop stable (roots). The reported PM is the smallest distance
@@ -331,6 +337,7 @@ def test_phase_margin_is_the_smallest_over_all_gain_crossovers(monkeypatch):
     assert m.bending_gain_db[0] > 0.0                 # the mode is above 0 dB (not gain-stabilised)
 
 
+@pytest.mark.slow
 def test_low_gain_margin_is_the_nearest_reduction_limit(monkeypatch):
     """A lightly damped low-frequency mode (1.6 rad/s, below the crossover) makes ∠L cross
     −180° three times with |L| > 1. Reducing the gain destabilises the loop first at the
@@ -352,6 +359,7 @@ def test_low_gain_margin_is_the_nearest_reduction_limit(monkeypatch):
     assert loop.is_lower_limit(m.gm_low, rel=0.01)
 
 
+@pytest.mark.slow
 def test_bending_window_is_plus_minus_20_percent_of_the_parameter_frequency(monkeypatch):
     """The model's bending frequencies are uncertain (Table 2.3: −20/+15 %, −25/+20 %): the
     peak is searched within ±20 % of the frequency the parameters give. Resonances at 1.15×
@@ -369,6 +377,7 @@ def test_bending_window_is_plus_minus_20_percent_of_the_parameter_frequency(monk
         assert got == pytest.approx(20 * math.log10(abs(rigid.L(w0)) * ratio), abs=0.5)
 
 
+@pytest.mark.slow
 def test_controller_scheduled_at_the_clamped_velocity_and_given_rate(monkeypatch):
     """K is taken at v(t) clamped to the synthesis grid and at the requested ρ̇ slice."""
     loop = _conditional_loop()
@@ -388,6 +397,7 @@ def pd_table(tmp_path_factory):
     return write_pd_table(tmp_path_factory.mktemp("pd") / "pd.npz")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("t_s", [20.0, 40.0, 80.0])
 def test_real_plant_margins_match_python_control(pd_table, t_s):
     """The launcher's own loop (plant_for_simulation: rigid body, bending, actuator, delay)

@@ -88,6 +88,7 @@ def test_unboundedness_is_certified():
     assert problem.status == cp.UNBOUNDED
 
 
+@pytest.mark.slow
 def test_agrees_with_clarabel_on_a_small_lmi_problem():
     """The bounded-real LMI of a stable 4-state system (its H∞ norm): min γ² s.t.
     [[AᵀP + PA + CᵀC, PB], [BᵀP, −γ²I]] ⪯ 0, P ⪰ 0, against Clarabel."""
@@ -108,6 +109,7 @@ def test_agrees_with_clarabel_on_a_small_lmi_problem():
     assert problem.value == pytest.approx(peak ** 2, rel=1e-3)
 
 
+@pytest.mark.slow
 def test_synthesis_stage2_on_the_embedding():
     """The IPM path solves both stages of the small LPV problem (test_lmi_lpv.py); γ_min as
     the Clarabel path within 0.5 %, both certificates negative."""
@@ -122,6 +124,7 @@ def test_synthesis_stage2_on_the_embedding():
     assert new.certificate_max_eig < 0.0 and old.certificate_max_eig < 0.0
 
 
+@pytest.mark.slow
 def test_stage1_on_clarabel_stage2_on_the_ipm():
     """The "hybrid" path of `vega synth` (pipeline.SOLVER_PATHS): stage 1 by Clarabel on the
     Schur-reduced LMIs, stage 2 by the IPM; same γ_min as Clarabel alone on the same form."""

@@ -58,6 +58,7 @@ def test_ipm_rejects_unsupported_cones():
         solve_conic(np.eye(2), np.ones(2), np.ones(2), (), 1, n_zero=1)
 
 
+@pytest.mark.slow
 def test_reduced_stage1_matches_full_form(plant):
     full = synthesize(plant, rate_bounds=RATES, backoff=1.0, solver="CLARABEL", fallback=None,
                       stage1_form="full")
@@ -67,6 +68,7 @@ def test_reduced_stage1_matches_full_form(plant):
     assert reduced.certificate_max_eig < 0.0
 
 
+@pytest.mark.slow
 def test_ipm_path_matches_the_clarabel_path(plant):
     old = synthesize(plant, rate_bounds=RATES, solver="CLARABEL", fallback="SCS",
                      stage1_form="full")

@@ -95,6 +95,7 @@ def test_recorded_controller_stability_is_true(table):
     assert np.all(radius < 1.01)                     # nothing faster than the 50 Hz loop can hold
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("plant", ("linear", "nonlinear"))
 def test_thesis_scenario_meets_table_3_1(table, plant):
     """The thesis' scenario (θ0 = 2°, Dryden wind, seeded INS noise, 10–90 s) through the

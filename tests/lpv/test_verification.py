@@ -63,6 +63,7 @@ def test_grids_and_time_map():
         grid_times("dense", ctx)
 
 
+@pytest.mark.slow
 def test_frozen_sweep_at_the_design_point(frozen_result):
     sweep = frozen_point_sweep(frozen_result, SHIPPED, default_context(), [40.0, 41.0], 20.0)
     assert sweep.all_stable
@@ -70,6 +71,7 @@ def test_frozen_sweep_at_the_design_point(frozen_result):
     assert sweep.hinf[1] > 0 and math.isfinite(sweep.hinf[1])
 
 
+@pytest.mark.slow
 def test_loop_margins_of_a_stabilising_controller(frozen_result):
     m = loop_margins(frozen_result, default_context(), 40.0, 20.0)
     assert 0 < m.gm_low < 1.0          # conditionally stable: the rigid body diverges open loop
@@ -115,6 +117,7 @@ def test_time_at_velocity_stays_within_2_to_100_s():
     assert time_at_velocity(np.interp(63.25, t, v), ctx) == pytest.approx(63.25, abs=1e-6)
 
 
+@pytest.mark.slow
 def test_frozen_sweep_reports_times_velocities_and_rate(frozen_result):
     ctx = default_context()
     sweep = frozen_point_sweep(frozen_result, SHIPPED, ctx, [40, 41], 20)
@@ -125,6 +128,7 @@ def test_frozen_sweep_reports_times_velocities_and_rate(frozen_result):
     assert np.all(sweep.max_real_eig < 0) and np.all(np.isfinite(sweep.hinf))
 
 
+@pytest.mark.slow
 def test_frozen_sweep_uses_the_given_context(frozen_result, tmp_path):
     """A context whose bending data start at 20 s (not 0 s) has other mode frequencies at
     40 s, so its frozen loop, and its H∞ norm, differ from the default context's."""

@@ -36,6 +36,9 @@ from vega_lpv.weights import SHIPPED, THESIS
 from vega_model.parameters import ModelContext, default_context
 from vega_model.vehicle_data import default_vehicle_path, load_vehicle_data
 
+# every test here shares a module fixture that takes seconds (a solve or a flight)
+pytestmark = pytest.mark.slow
+
 GRID_RHO_MPS = (400.0, 500.0, 600.0)
 RATE_BOX_MPS2 = (0.0, 35.83)
 

@@ -27,6 +27,7 @@ def test_clopper_pearson_lower_bound_is_scipys_exact_one_sided(k, n, confidence)
     assert clopper_pearson_lower(0, n, confidence) == 0.0
 
 
+@pytest.mark.slow
 def test_runs_for_99_73_percent_at_90_percent():
     """Hanson & Beard (NASA/TP-2010-216447): 852 runs without a failure, 1 440 with one."""
     assert runs_needed(0.9973, 0.90, failures=0) == 852
@@ -74,6 +75,7 @@ def test_a_sample_depends_on_the_seed_and_its_index_only():
     assert c.seed != a.seed and d.seed != a.seed and c.uncertainty != a.uncertainty
 
 
+@pytest.mark.slow
 def test_samples_stay_in_the_set_and_follow_their_distribution():
     uset = UncertaintySet.from_vehicle(load_vehicle_data())
     draws = {name: [] for name in UNCERTAINTY_NAMES}

@@ -60,6 +60,7 @@ def campaigns(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_real_campaigns_of_the_same_samples(campaigns, tmp_path, capsys):
     report, plot = tmp_path / "cmp.json", tmp_path / "cmp.png"
     assert cli.main(["mc", "compare", str(campaigns["a"]), str(campaigns["b"]),
@@ -82,6 +83,7 @@ def _refused(capsys, *dirs) -> str:
     return err
 
 
+@pytest.mark.slow
 def test_other_samples_and_incomplete_campaigns_are_refused(campaigns, tmp_path, capsys):
     err = _refused(capsys, campaigns["a"], campaigns["other"])
     assert err == (f"vega: error: {campaigns['other']}: its seed is not that of "

@@ -61,6 +61,7 @@ def reference(tmp_path_factory, scenario):
     return out
 
 
+@pytest.mark.slow
 def test_same_samples_whatever_the_worker_count(reference, scenario, tmp_path, capsys):
     out = tmp_path / "two"
     code = cli.main(["mc", "run", "--scenario", str(scenario), "--runs", str(RUNS), "--seed", "4",
@@ -77,6 +78,7 @@ def test_same_samples_whatever_the_worker_count(reference, scenario, tmp_path, c
         assert (out / name).stat().st_size > 0
 
 
+@pytest.mark.slow
 def test_scheduler_and_worker_processes_on_loopback(reference, scenario, tmp_path):
     sched_file = tmp_path / "scheduler.json"
     dask = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
@@ -119,6 +121,7 @@ def _without_wall(row):
     return {k: v for k, v in row.items() if k != "wall_s"}
 
 
+@pytest.mark.slow
 def test_killed_campaign_resumes_without_reflying(long_scenario, tmp_path):
     """SIGKILL at an event — the first sample file written — then ``--resume``: the kept
     samples are not flown again, the others are, and the resumed rows are the flights
@@ -183,6 +186,7 @@ def test_bad_input_one_line_exit_2_nothing_started(tmp_path, capsys, args, messa
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_rerun_of_a_sample_through_the_ros_nodes_gives_its_row(reference, tmp_path, capsys):
     """`vega mc rerun`: sample 1 of the campaign flown by the five SIL processes; the metrics
     computed from its bag equal the campaign row (the same code on bit-identical data)."""
@@ -193,6 +197,7 @@ def test_rerun_of_a_sample_through_the_ros_nodes_gives_its_row(reference, tmp_pa
     assert (tmp_path / "nominal_mc_short_mc1.yaml").is_file()
 
 
+@pytest.mark.slow
 def test_rerun_bad_input(reference, tmp_path, capsys):
     assert cli.main(["mc", "rerun", str(reference), "--sample", str(RUNS)]) == 2
     assert "the campaign has samples 0-5" in capsys.readouterr().err
@@ -200,6 +205,7 @@ def test_rerun_bad_input(reference, tmp_path, capsys):
     assert "not a campaign directory" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_margins_campaign_is_the_margins_of_the_sampled_plants(tmp_path, capsys):
     """`vega mc margins`: each row holds the margins vega margins computes for the plant of that
     sample (its deviations as sample_scenario draws them), and the same rows on 1 and 2

@@ -88,6 +88,7 @@ def test_axial_coefficient_shape(aero):
     assert aero.c_a(10.0) == aero.c_a(6.0)
 
 
+@pytest.mark.slow
 def test_scalar_tables_equal_numpy_interp_bit_for_bit(aero):
     """The plant's plain-float tables give numpy.interp's numbers exactly: inside segments, on
     and next to every breakpoint, outside the table, and through a kept segment."""

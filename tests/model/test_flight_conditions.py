@@ -44,6 +44,7 @@ def fc():
     return FlightConditions.load()
 
 
+@pytest.mark.slow
 def test_regenerating_reproduces_the_committed_table(regenerated):
     out, _ = regenerated
     committed = default_flight_conditions_path().read_bytes()
@@ -56,6 +57,7 @@ def test_regenerating_reproduces_the_committed_table(regenerated):
                     f"ros2_ws/src/vega_model/vega_model/data/flight_conditions.csv")
 
 
+@pytest.mark.slow
 def test_summary_line(regenerated):
     out, line = regenerated
     assert line.count("\n") == 1
@@ -123,6 +125,7 @@ def test_consistent_with_thesis_table_2_1(fc):
     assert 0.93 * 280.0 < isp_effective < 280.0      # sea-level losses: below vacuum Isp
 
 
+@pytest.mark.slow
 def test_integration_step_converged(fc):
     """Halving the Runge-Kutta step (0.01 s -> 0.005 s) changes v by < 1e-4 m/s."""
     fine = simulate(AscentModel.from_vehicle(load_vehicle_data()), substeps=20)

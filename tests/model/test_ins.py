@@ -56,6 +56,7 @@ def test_noise_free_measurement_is_the_ins_kinematics(params, t):
     assert m.theta_rad == pytest.approx(-p.psi_r_ins[0]) and m.z_m == pytest.approx(p.psi_t_ins[0])
 
 
+@pytest.mark.slow
 def test_noise_std_matches_eq_4_18(params):
     p = model_parameters(50.0)
     sensor = InsSensor(params, seed=21)

@@ -22,6 +22,7 @@ def _bits(values):
     return np.asarray(values, dtype=float).view(np.uint64).tolist()
 
 
+@pytest.mark.slow
 def test_hypot_is_cpythons_bit_for_bit():
     rng = np.random.default_rng(7)
     n = 20000
@@ -36,6 +37,7 @@ def test_hypot_is_cpythons_bit_for_bit():
     assert _bits(got) == _bits(want)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("t_s", [0.0, 12.5, 33.0, 58.7, 80.0, 100.0])
 def test_rk4_step_equals_the_python_model(t_s):
     p = default_context().parameters(t_s)
@@ -51,6 +53,7 @@ def test_rk4_step_equals_the_python_model(t_s):
         assert _bits(xa) == _bits(model.rk4_step(x, u, 0.001))
 
 
+@pytest.mark.slow
 def test_rk4_frame_equals_the_python_steps_across_parameter_entries():
     """Ten steps over two parameter entries (a 5 ms refresh), inputs at the step means."""
     ctx = default_context()

@@ -27,6 +27,7 @@ def _same(p, q):
     assert repr(p) == repr(q)            # the signs of zeros too
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("deviations", [{}, ALL_DEVIATIONS])
 def test_parameters_at_times_equals_parameters_one_by_one(deviations):
     """Times before, at and after the track's ends and every 10 ms inside."""
@@ -102,6 +103,7 @@ def test_model_parameters_uses_the_given_context_or_the_default_one():
     assert got.aero is custom.aero and got.t_s == 30.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("deviations", [{"velocity": 0.02}, {"x_cg": -0.01, "psi_mode_2": 0.4}])
 def test_deviations_naming_a_few_parameters_leave_the_others_nominal(deviations):
     ctx = default_context()
@@ -110,6 +112,7 @@ def test_deviations_naming_a_few_parameters_leave_the_others_nominal(deviations)
         _same(p, ctx.parameters(t).perturbed(deviations))
 
 
+@pytest.mark.slow
 def test_at_the_tables_own_times_and_for_integer_times():
     """Every row time of the flight-conditions table (where the interpolation's interval is
     decided by equality) and times given as Python ints: the scalar path's objects."""
@@ -136,6 +139,7 @@ def _conditions_with_rounding_rows(base):
     return FlightConditions(base.path, COLUMNS, data, base.provenance)
 
 
+@pytest.mark.slow
 def test_row_times_of_a_table_whose_interpolation_rounds():
     base = default_context()
     ctx = ModelContext(base.vehicle, _conditions_with_rounding_rows(base.conditions))

@@ -30,6 +30,7 @@ def _write(tmp_path, tree):
     return path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("edit, message", [
     (lambda t: t["geometry"].pop("x_ins_m"), "field 'geometry.x_ins_m' is missing"),
     (lambda t: t["nozzle"]["mass_kg"].pop("source"), "field 'nozzle.mass_kg': missing 'source'"),

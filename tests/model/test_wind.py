@@ -82,6 +82,7 @@ def _run(turb, n, h, v):
     return np.array([turb.step(h, v) for _ in range(n)])
 
 
+@pytest.mark.slow
 def test_dryden_stationary_std_and_correlation_time(data):
     """Severe at 11 km (interpolated row): σ = 7.805 m/s, L = 1515 m; V = 1000 m/s."""
     dt, h, v = 0.05, 11000.0, 1000.0

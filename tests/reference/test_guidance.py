@@ -9,6 +9,9 @@ from vega_gnc.guidance_reference import default_reference_path, load_guidance_re
 from vega_model.parameters import default_context
 from vega_model.wind import wind_profile_mps
 
+# every test here shares a module fixture that takes seconds (a solve or a flight)
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def design():

@@ -44,6 +44,7 @@ def flights(tmp_path_factory, scenario, pd_table):
     return bags
 
 
+@pytest.mark.slow
 def test_sil_bag_is_the_in_process_simulation(flights, scenario, pd_table):
     """The SIL bag holds exactly the messages the in-process simulation
     (:func:`vega_sim.closed_loop.run_scenario`, as messages by :mod:`vega_bags.simbag`)
@@ -71,6 +72,7 @@ def test_sil_bag_is_the_in_process_simulation(flights, scenario, pd_table):
         assert first_bad is None, f"{topic}: message {first_bad} differs"
 
 
+@pytest.mark.slow
 def test_same_scenario_and_seed_same_bytes_and_file_order(flights):
     """Two runs of the same scenario and seed: the same raw bytes (as received, not
     re-serialised) for every message of every data topic and /clock, and the same file order

@@ -154,6 +154,7 @@ def test_recorder_reads_stamp_and_seq_from_cdr():
 
 
 # ----------------------------------------------------------------------------- ROS: bad input
+@pytest.mark.slow
 @pytest.mark.ros
 def test_malformed_controller_table_exits_2_with_one_line(nodes, tmp_path):
     bad = tmp_path / "broken.npz"
@@ -164,6 +165,7 @@ def test_malformed_controller_table_exits_2_with_one_line(nodes, tmp_path):
     assert err.count("\n") == 1 and err.startswith("tvc_controller: ") and str(bad) in err
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 def test_malformed_guidance_reference_exits_2_with_one_line(nodes, tmp_path):
     bad = tmp_path / "broken_reference.npz"
@@ -174,6 +176,7 @@ def test_malformed_guidance_reference_exits_2_with_one_line(nodes, tmp_path):
     assert err.count("\n") == 1 and str(bad) in err and "guidance reference" in err, err
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 def test_controller_refuses_a_guidance_reference_that_is_not_the_runs(nodes, tmp_path,
                                                                       pd_table):
@@ -193,6 +196,7 @@ def test_controller_refuses_a_guidance_reference_that_is_not_the_runs(nodes, tmp
     assert "'guidance_reference' 'none' is not the run's guidance 'default'" in err, err
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 @pytest.mark.parametrize("name, key, value, text", [
     ("plant", "scenario", "no_such_scenario", "unknown scenario 'no_such_scenario'"),
@@ -205,6 +209,7 @@ def test_bad_parameters_exit_2_with_one_line(nodes, tmp_path, name, key, value, 
     assert code == 2 and err.count("\n") == 1 and text in err, err
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 def test_barrier_timeout_names_the_missing_participant(nodes, tmp_path):
     proc = nodes("plant", _params(tmp_path / "p.yaml", scenario=str(_short_scenario(tmp_path)),
@@ -284,6 +289,7 @@ def _controller_with_driver(nodes, tmp_path, table_path, n_frames, **params):
     return driver, proc
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 def test_controller_flags_bad_measurements_and_never_crashes(nodes, tmp_path, pd_table):
     """NaN, stale, out-of-order, off-grid stamps and velocities over real DDS → the
@@ -336,6 +342,7 @@ def test_controller_flags_bad_measurements_and_never_crashes(nodes, tmp_path, pd
     assert {m.header.frame_id for m in d} == {"tvc_controller"}
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 def test_controller_sequence_gap_fails_the_run(nodes, tmp_path, pd_table):
     path, table = pd_table
@@ -351,6 +358,7 @@ def test_controller_sequence_gap_fails_the_run(nodes, tmp_path, pd_table):
     assert "sequence gap on /vega/ins: expected seq 1, got 2" in err
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 def test_controller_stall_and_sigterm(nodes, tmp_path, pd_table):
     """No measurement for stall_timeout_s → exit 1 naming what it waited for; SIGTERM while
@@ -391,6 +399,7 @@ def test_controller_stall_and_sigterm(nodes, tmp_path, pd_table):
 
 
 # ----------------------------------------------------------------------------- ROS: a short run
+@pytest.mark.slow
 @pytest.mark.ros
 def test_short_run_records_a_complete_bag(nodes, tmp_path, pd_table):
     """Five processes started in reverse order fly 10–11 s in lockstep; the recorder's bag
@@ -428,6 +437,7 @@ def test_short_run_records_a_complete_bag(nodes, tmp_path, pd_table):
     assert np.array_equal(run["/vega/tvc_cmd"]["deflection_cmd_rad"], ref.cmd_rad)
 
 
+@pytest.mark.slow
 @pytest.mark.ros
 @pytest.mark.parametrize("text, problem", [
     ("/**:\n  ros__parameters: [oops\n", "bad.yaml: not valid YAML (line 3)"),

@@ -158,6 +158,7 @@ def test_malformed_table_is_rejected_before_start(tmp_path, capsys, no_start):
     assert not (tmp_path / "runs").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("command, factor", [("sil", 5.0), ("mc", 5.0), ("sil", 1e300)])
 def test_table_that_does_not_stabilise_is_refused_before_start(tmp_path, capsys, no_start,
                                                                command, factor):
@@ -277,6 +278,7 @@ def test_supervisor_failure_stops_the_others_and_names_the_node(tmp_path):
     assert not any(alive(p.popen.pid) for p in sup.processes)
 
 
+@pytest.mark.slow
 def test_supervisor_kills_a_node_that_ignores_sigterm(tmp_path, monkeypatch):
     """A node that ignores SIGTERM is killed (SIGKILL) after the grace time; the run still
     ends and reaps it."""
@@ -328,6 +330,7 @@ def _driver(tmp_path, tail):
     return driver
 
 
+@pytest.mark.slow
 def test_supervisor_interrupt_stops_everything(tmp_path):
     """SIGINT or SIGTERM to the orchestrator (a separate process running the supervisor):
     every node is stopped, the orchestrator exits with the interrupted outcome and no node
@@ -393,6 +396,7 @@ def _in_small_fs(mount_point: Path, size: str, command: list[str]):
                           text=True, timeout=budget_s(120.0))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("size, code", [("4m", 2), ("64m", 0)])
 def test_free_space_is_checked_before_start(tmp_path, size, code):
     """`vega sil run` into a file system too small for the run's bag, logs and report (80 s:

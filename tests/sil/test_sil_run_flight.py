@@ -86,6 +86,7 @@ def short_flight(tmp_path_factory, short_scenario, pd_table):
     return result, run_layout_in(out)
 
 
+@pytest.mark.slow
 def test_flight_writes_bag_report_and_table(short_flight, short_scenario, pd_table):
     """The run directory holds params, commands, logs, a readable bag and the report (JSON,
     Markdown, plots); each requirement passes or fails, in the report and in the printed table,
@@ -118,6 +119,7 @@ def test_flight_writes_bag_report_and_table(short_flight, short_scenario, pd_tab
 
 
 # ----------------------------------------------------------------------------- by hand
+@pytest.mark.slow
 def test_dry_run_lines_fly_when_pasted_in_any_order(tmp_path, short_scenario, pd_table):
     """``--dry-run`` starts nothing and prints one runnable line per node; started from
     those lines (each in its own bash, in reverse order) the nodes fly and end with 0."""
@@ -154,6 +156,7 @@ def test_dry_run_lines_fly_when_pasted_in_any_order(tmp_path, short_scenario, pd
 
 
 # ----------------------------------------------------------------------------- failures
+@pytest.mark.slow
 @pytest.mark.parametrize("victim, how", [("tvc_actuator", signal.SIGKILL),
                                          (None, signal.SIGINT)])
 def test_node_death_or_interrupt_stops_everything(tmp_path, signal_scenario, pd_table,
@@ -228,6 +231,7 @@ def _wait_until(condition, timeout_s):
     return condition()
 
 
+@pytest.mark.slow
 def test_stopped_recorder_still_closes_its_bag(tmp_path, signal_scenario, pd_table):
     """The recorder stopped mid-flight (SIGSTOP: a debugger, job control), then the run is
     stopped (SIGTERM to ``vega sil run``): the supervisor resumes it (SIGCONT) before its
@@ -313,6 +317,7 @@ def _signal_mid_flight(args, victim: str, at_sim_s: float, sig) -> tuple[int, st
     return proc.returncode, "".join(stderr), nodes
 
 
+@pytest.mark.slow
 def test_killed_recorder_bag_is_repaired(tmp_path, signal_scenario, pd_table):
     """The recorder killed mid-flight (SIGKILL: nothing it can handle): the run fails naming
     it and says how to recover; the bag has no metadata.yaml, `vega bag repair` rebuilds it
@@ -342,6 +347,7 @@ def test_killed_recorder_bag_is_repaired(tmp_path, signal_scenario, pd_table):
     assert health["metadata"]["passed"] and not health["coverage"]["passed"]
 
 
+@pytest.mark.slow
 def test_a_recorder_that_ends_mid_flight_is_blamed(tmp_path, signal_scenario, pd_table):
     """The recorder stopped by SIGTERM mid-flight closes its bag and exits 0 — too early: the
     run fails naming the recorder as having ended before the run was complete (it must not fly
@@ -355,6 +361,7 @@ def test_a_recorder_that_ends_mid_flight_is_blamed(tmp_path, signal_scenario, pd
         error
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("victim", ["tvc_controller", "recorder"])
 def test_a_stopped_node_is_the_one_blamed(tmp_path, signal_scenario, pd_table, victim):
     """A node stopped mid-flight (SIGSTOP): the others stall waiting for it; the run fails
@@ -369,6 +376,7 @@ def test_a_stopped_node_is_the_one_blamed(tmp_path, signal_scenario, pd_table, v
     assert not any(alive(p) for p in nodes)
 
 
+@pytest.mark.slow
 def test_full_disk_during_the_flight_is_named(tmp_path, pd_table):
     """The output file system fills up during the flight (a real 12 MB tmpfs, private mount
     namespace; a filler file takes the free space 3 s into a real-time 10-30 s run, after the
@@ -400,6 +408,7 @@ def test_full_disk_during_the_flight_is_named(tmp_path, pd_table):
     assert "repair exit 0" in result.stdout, out
 
 
+@pytest.mark.slow
 def test_malformed_table_in_the_node_names_it(tmp_path, short_scenario):
     """The supervisor with the real nodes and a malformed table in the parameters (the
     command line rejects it before starting; this is the path of a table broken later, or of
@@ -423,6 +432,7 @@ def test_malformed_table_in_the_node_names_it(tmp_path, short_scenario):
     assert not any(alive(p.popen.pid) for p in sup.processes)
 
 
+@pytest.mark.slow
 def test_barrier_timeout_names_the_missing(tmp_path, short_scenario, pd_table):
     """A participant that never comes (``ghost`` in the participants list): the start barrier
     times out and the run names it; every real node is stopped."""
@@ -447,6 +457,7 @@ def _report_of(out):
     return json.loads((run_layout_in(out).report_dir / "report.json").read_text())
 
 
+@pytest.mark.slow
 def test_thesis_scenario(tmp_path, pd_table):
     """The whole thesis scenario (10–90 s) through ``vega sil run``.
 

@@ -108,6 +108,7 @@ def _shm_modes(pid):
     return modes
 
 
+@pytest.mark.slow
 def test_a_busy_domain_is_found_and_never_picked(rogue, ros_domain_id, tmp_path):
     assert rosenv.domain_in_use(ros_domain_id) is None
     rogue("squatter", topics.INS.name, 0)
@@ -119,6 +120,7 @@ def test_a_busy_domain_is_found_and_never_picked(rogue, ros_domain_id, tmp_path)
     assert counter.read_text().strip() == str(picked)
 
 
+@pytest.mark.slow
 def test_an_exported_busy_domain_is_refused_before_anything_starts(rogue, ros_domain_id,
                                                                    tmp_path, scenario,
                                                                    pd_table):
@@ -134,6 +136,7 @@ def test_an_exported_busy_domain_is_refused_before_anything_starts(rogue, ros_do
     assert not list(out.glob("*/params.yaml"))          # nothing written, nothing started
 
 
+@pytest.mark.slow
 def test_a_foreign_publisher_fails_the_run_naming_it(rogue, tmp_path, scenario, pd_table):
     """A rogue ``/vega/ins`` publisher joins a flying run (paced to real time): the run
     fails (exit 1) naming the rogue node and its GID; the bag holds none of its messages."""
@@ -171,6 +174,7 @@ def test_a_foreign_publisher_fails_the_run_naming_it(rogue, tmp_path, scenario, 
     assert ins["seq"].tolist() == list(range(len(ins)))
 
 
+@pytest.mark.slow
 def test_a_node_refuses_a_second_publishers_message(nodes, rogue, tmp_path, pd_table):
     """A rogue process publishes one INS message (seq 1: the next the run expects) into a
     controller that has taken the driver's message 0: refused, exit 1, nothing computed from
@@ -201,6 +205,7 @@ def test_a_node_refuses_a_second_publishers_message(nodes, rogue, tmp_path, pd_t
     assert len(driver.commands) == 1                  # nothing computed from the rogue's
 
 
+@pytest.mark.slow
 def test_a_node_refuses_a_message_that_breaks_the_stream(nodes, tmp_path, pd_table):
     """A publisher replaced by another (its publication sequence numbers restart at 1):
     the next message is refused, not flown. (One refusal only: DDS announces the old writer's

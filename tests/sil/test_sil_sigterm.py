@@ -71,6 +71,7 @@ def _until_flag(proc, timeout_s):
     return False
 
 
+@pytest.mark.slow
 def test_sigterm_at_random_points_of_a_start(tmp_path):
     """20 starts of the five node executables in turn, each alone (it waits at the start
     barrier for the other participants); SIGTERM after a random 0–2 s, counted from the
@@ -121,6 +122,7 @@ def short_scenario(tmp_path_factory):
                                 "thesis_sigterm", 10.0, FLIGHT_END_S)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("flight", range(4))
 def test_sigterm_to_every_node_mid_flight(tmp_path, short_scenario, flight):
     """Five nodes fly the thesis scenario cut to 10–13 s, paced to real time; at a random

@@ -11,6 +11,7 @@ from sil_flights import run_layout_in, vega_sil_run
 pytestmark = pytest.mark.ros
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scenario", ["nominal", "thesis", "gust", "wind_change",
                                       "dispersed_bending_low", "dispersed_worst"])
 def test_design_scenarios_pass(tmp_path, scenario):
@@ -20,6 +21,7 @@ def test_design_scenarios_pass(tmp_path, scenario):
     assert run_layout_in(tmp_path).bag_dir.is_dir()
 
 
+@pytest.mark.slow
 def test_no_bias_fails_the_load_requirement(tmp_path):
     result = vega_sil_run(["--scenario", "nominal_no_bias", "--out", tmp_path])
     assert result.returncode == 1, result.stderr[-2000:]
@@ -30,6 +32,7 @@ def test_no_bias_fails_the_load_requirement(tmp_path):
     assert "Actuation" not in verdict
 
 
+@pytest.mark.slow
 def test_off_design_severe_is_reported_not_gated(tmp_path):
     """`severe` is declared off-design in its scenario file: its requirement verdict is
     printed (it fails) and the command exits 0."""

@@ -124,6 +124,7 @@ def test_thesis_dryden_is_the_exact_zoh_of_the_dryden_filter():
     assert a == 1.0 and g == 0.0
 
 
+@pytest.mark.slow
 def test_thesis_wind_rises_to_three_times_the_dc_gain(pd_table):
     """The thesis scenario's wind: zero at t_start, then 3·σ_w√(2L_w/(πV)) (slowly varying)."""
     sc = replace(load_scenario("thesis"), t_end_s=40.0, sensor_noise=False)
@@ -201,6 +202,7 @@ def test_latency_with_decimation_phase_at_node_level(gain_table, step_ms):
 
 
 # ----------------------------------------------------------------------------- behaviour
+@pytest.mark.slow
 def test_theta0_decays_on_the_thesis_scenario(pd_table):
     """Thesis §5.2: θ0 = 2° is removed; the loop settles with the thesis' wind and noise."""
     res = run_scenario(replace(load_scenario("thesis"), t_end_s=30.0), pd_table)
@@ -278,6 +280,7 @@ def test_other_seed_other_noise(pd_table):
     assert derive_seeds(2) != (wind_seed, ins_seed)
 
 
+@pytest.mark.slow
 def test_linear_and_nonlinear_plants_agree_for_small_perturbations(pd_table):
     """Same closed loop on both plants (40–50 s, max-Q, no wind, no noise, θ0 = 0.1° and
     0.05°): the nonlinear model's Jacobian is the linear model, so the difference is second
@@ -298,6 +301,7 @@ def test_linear_and_nonlinear_plants_agree_for_small_perturbations(pd_table):
     assert np.all((big / small > 1.8) & (big / small < 2.2)), big / small
 
 
+@pytest.mark.slow
 def test_parameter_refresh_interval_barely_matters(pd_table):
     """Refreshing the parameters every 1 ms instead of every 10 ms frame changes the histories
     by < 5e-4 of their peaks (measured here ≤ 1e-4; on the full runs ≤ 2e-4 for the thesis

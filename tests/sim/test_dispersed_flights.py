@@ -27,6 +27,7 @@ def nominal(table):
     return flight_metrics(run_scenario(load_scenario("nominal"), table))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, deviations", [
     ("dispersed_bending_low", {"bending_frequency_1": -0.20}),
     ("dispersed_bending_high", {"bending_frequency_1": 0.15}),
@@ -48,6 +49,7 @@ def test_bending_edge_flights_stay_stable(table, nominal, name, deviations):
     assert row["n_velocity_clamped"] == 0
 
 
+@pytest.mark.slow
 def test_the_default_table_never_leaves_its_grid(nominal):
     assert nominal["verdict"] == "pass"
     assert nominal["n_velocity_clamped"] == 0

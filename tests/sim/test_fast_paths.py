@@ -126,6 +126,7 @@ def test_a_run_leaves_the_garbage_collector_as_it_was(enabled):
         (gc.enable if was else gc.disable)()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("deviations", [{}, DEVIATIONS])
 def test_lazy_parameter_sets_equal_the_bulk_build(deviations):
     ctx = default_context()
@@ -155,6 +156,7 @@ def test_parameter_views_are_the_parameter_sets_fields(deviations):
         assert track.view_ms(t_ms) is view and track.at_ms(t_ms) is p
 
 
+@pytest.mark.slow
 def test_actuator_run_tuples_equal_single_steps_at_every_limit():
     """Random commands (repeated objects, NaN, ±inf among them) that drive the nozzle onto both
     stops and both rate limits: run_tuples gives step's numbers, and each limit is reached."""

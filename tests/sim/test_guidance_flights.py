@@ -72,6 +72,7 @@ def flights():
     return {name: run_scenario(name, table) for name in ("nominal", "nominal_no_bias")}
 
 
+@pytest.mark.slow
 def test_wind_bias_keeps_the_load_inside_the_envelope(flights):
     """The same flight (seed, wind, noise) with and without the reference: without it the steady
     wind exceeds the envelope at Mach ≈ 0.31 (10.5–11.6 s; with the structured design's weak

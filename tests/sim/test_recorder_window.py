@@ -6,6 +6,8 @@ descriptors of a port, or a descheduled recorder loses samples (a 100-frame wind
 writer's deliveries held up stop the plant within the window (a report counting the truth
 alone does not: the other writers' samples, e.g. /vega/ins, are then lost)."""
 
+import pytest
+
 from vega_bus.schedule import RECORDER_REPORT_FRAMES, RECORDER_WINDOW_FRAMES
 from vega_sim.run import load_run
 
@@ -100,6 +102,7 @@ def test_a_finished_topic_no_longer_holds_the_report_and_all_done_is_the_truth_c
     assert early.frames() == 3
 
 
+@pytest.mark.slow
 def test_the_window_protocol_over_a_whole_flight_never_stalls_and_holds_the_plant():
     """The plant / recorder protocol simulated over the nominal run's schedule: the plant
     publishes frame k only while k − report < RECORDER_WINDOW_FRAMES; the other nodes' messages

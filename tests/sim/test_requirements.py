@@ -69,6 +69,7 @@ def test_envelope_is_four_degrees_times_q_with_a_floor(spec):
     assert spec.envelope(0.31) < spec.envelope(0.36)
 
 
+@pytest.mark.slow
 def test_envelope_table_is_what_its_generator_gives(spec):
     """The shipped table, its definition block and its provenance agree with the generator."""
     d = spec.envelope_definition

@@ -9,6 +9,7 @@ no verdict or margin, shrinking a passing run keeps it passing.
 """
 
 import math
+import pytest
 
 import numpy as np
 from hypothesis import given, settings
@@ -57,6 +58,7 @@ def _report(r, sign=1.0):
                                  spec=SPEC)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(runs())
 def test_verdicts_and_margins_equal_the_per_sample_recomputation(r):
@@ -89,6 +91,7 @@ def test_verdicts_and_margins_equal_the_per_sample_recomputation(r):
                               "deflection_integral"))
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(runs())
 def test_negating_every_series_changes_no_verdict_or_margin(r):
@@ -99,6 +102,7 @@ def test_negating_every_series_changes_no_verdict_or_margin(r):
     assert a.passed == b.passed
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(runs(), st.floats(0.0, 1.0))
 def test_shrinking_a_passing_run_keeps_it_passing(r, c):
@@ -111,6 +115,7 @@ def test_shrinking_a_passing_run_keeps_it_passing(r, c):
         assert rs.margin >= ra.margin - 1e-9 * max(1.0, abs(ra.bound))
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(runs())
 def test_q_alpha_sensitivity_agrees_with_the_q_alpha_verdict(r):
@@ -123,6 +128,7 @@ def test_q_alpha_sensitivity_agrees_with_the_q_alpha_verdict(r):
         assert flip.mach_min_flip == SPEC.envelope_definition.mach_min
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(st.integers(1, 30), st.sampled_from(["nan", "inf", "-inf"]), st.data())
 def test_a_non_finite_sample_fails_its_requirement(n, bad, data):
