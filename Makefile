@@ -116,7 +116,7 @@ lint: setup
 test: setup lint
 	cd $(ROOT) && $(VENV)/bin/vega-env python -m pytest tests $(PYTEST_ARGS)
 
-# The fast tier for everyday work (docs/TESTING.md): every test not marked slow (> 2 s).
+# The fast tier for everyday work: every test not marked slow (docs/TESTING.md, "Test tiers").
 .PHONY: check
 check: setup lint
 	cd $(ROOT) && $(VENV)/bin/vega-env python -m pytest tests -m "not slow" -q $(PYTEST_ARGS)
