@@ -44,8 +44,8 @@ from vega_core.documents import parse_yaml, read_text
 from vega_core.errors import BadFile
 
 __all__ = ["Dispersions", "load_dispersions", "parse_dispersions", "default_dispersions_path",
-           "sample_scenario", "fly_sample", "flight_metrics", "METRICS", "STATUS_COLUMNS",
-           "STABILITY_LIMITS", "MARGIN_COLUMNS", "margins_sample", "MACH_BIN",
+           "sample_scenario", "fly_sample", "fly_batch_samples", "flight_metrics", "METRICS",
+           "STATUS_COLUMNS", "STABILITY_LIMITS", "MARGIN_COLUMNS", "margins_sample", "MACH_BIN",
            "N_MACH_BINS"]
 
 DISTRIBUTIONS = ("uniform", "normal", "nominal")
@@ -332,6 +332,30 @@ def fly_sample(scenario_yaml: str, table_path: str, dispersions_text: str, campa
     row = {"sample": int(index), "seed": int(scenario.seed), **values, **flight_metrics(result)}
     row["wall_s"] = time.perf_counter() - t0
     return row
+
+
+def fly_batch_samples(scenario_yaml: str, table_path: str, dispersions_text: str,
+                      campaign_seed: int, indices) -> list[dict[str, Any]]:
+    """Fly the samples ``indices`` as one batch (:func:`vega_sim.batch.fly_batch`) and return
+    their results rows: for each sample the row :func:`fly_sample` returns, the same numbers
+    (the batched engine equals the per-flight path bit for bit, tests/sim/test_batch.py),
+    except ``wall_s``, which is the batch's wall time divided equally among its samples.
+    Picklable arguments, so that a Dask worker can run a batch as one task."""
+    from vega_sim.batch import fly_batch
+    from vega_sim.scenario import parse_scenario
+
+    t0 = time.perf_counter()
+    base = parse_scenario(scenario_yaml, "<campaign scenario>")
+    disp = parse_dispersions(dispersions_text, "<campaign dispersions>")
+    indices = [int(i) for i in indices]
+    drawn = [sample_scenario(base, disp, campaign_seed, i) for i in indices]
+    results = fly_batch([scenario for scenario, _ in drawn], _table(table_path))
+    rows = [{"sample": i, "seed": int(scenario.seed), **values, **flight_metrics(result)}
+            for i, (scenario, values), result in zip(indices, drawn, results)]
+    wall = (time.perf_counter() - t0) / max(len(rows), 1)
+    for row in rows:
+        row["wall_s"] = wall
+    return rows
 
 
 MARGIN_COLUMNS = ("pm_deg", "gm_low_db", "gm_high_db", "b1_peak_db", "b2_peak_db")

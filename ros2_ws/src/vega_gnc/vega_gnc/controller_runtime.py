@@ -49,7 +49,8 @@ from vega_gnc.controller_table import MEASUREMENT_NAMES, ControllerTable
 from vega_gnc.guidance_reference import GuidanceReference
 
 __all__ = ["STATUS_OK", "STATUS_HOLD_LAST", "STATUS_VELOCITY_CLAMPED", "STATUS_SAFE_ZERO",
-           "STATUS_LIMITED", "Measurement", "Command", "RuntimeLimits", "ControllerRuntime"]
+           "STATUS_LIMITED", "Measurement", "Command", "RuntimeLimits", "ControllerRuntime",
+           "ControllerBatch"]
 
 # The status values are declared once, in vega_msgs/msg/TvcCommand.msg; these are its constants.
 STATUS_OK = TvcCommand.STATUS_OK
@@ -242,3 +243,182 @@ class ControllerRuntime:
             return Command(self._last_command, v_report, STATUS_HOLD_LAST)
         self.reset()
         return Command(0.0, v_report, STATUS_SAFE_ZERO)
+
+
+class ControllerBatch:
+    """N independent copies of :class:`ControllerRuntime`, stepped at once on arrays.
+
+    The runtime's step (module docstring: validation, hold and safe zero, scheduling, update,
+    limit) written element-wise over a leading sample axis, for the batched flight engine
+    (``vega_sim.batch``). The matrices, bounds and limits are those of a
+    :class:`ControllerRuntime` built from the same arguments (its ``_S``, ``_dS``, bounds and
+    reference), and every operation is the runtime's, element by element: the same numbers
+    for each sample as its own runtime fed the same measurements (tests/gnc/ and
+    tests/sim/test_batch.py compare them bit for bit, fault paths included).
+
+    One difference of form: the runtime never raises because it catches any exception of a
+    step; here the only one it can meet, a non-finite ``now_s``, is handled as the runtime's
+    handler does (state reset, command 0, velocity NaN, ``STATUS_SAFE_ZERO``).
+
+    Parameters
+    ----------
+    n
+        Number of samples.
+    table, limits, rate_mps2, reference
+        As :class:`ControllerRuntime` (the same for every sample).
+    """
+
+    def __init__(self, n: int, table: ControllerTable, limits: RuntimeLimits = RuntimeLimits(),
+                 rate_mps2: float | None = None, reference: GuidanceReference | None = None):
+        rt = ControllerRuntime(table, limits, rate_mps2, reference)
+        self.runtime = rt
+        self.n = int(n)
+        fields = ("pitch_rad", "pitch_rate_radps", "drift_m", "drift_rate_mps")
+        self._cols = np.array([fields.index(name) for name in rt._getters])
+        self._bounds = np.array(rt._bounds, dtype=float)
+        self._ref_cols = np.array(rt._ref_cols)
+        self._grid = np.asarray(table.grid_v_mps, dtype=float)
+        self._xy = np.zeros((self.n, rt._n + rt._ny))
+        self._last_stamp_us = np.zeros(self.n, dtype=np.int64)
+        self._has_stamp = np.zeros(self.n, dtype=bool)
+        self._last_valid_us = np.zeros(self.n, dtype=np.int64)
+        self._has_valid = np.zeros(self.n, dtype=bool)
+        self._last_command = np.zeros(self.n)
+
+    def _reset(self, mask: np.ndarray) -> None:
+        """:meth:`ControllerRuntime.reset` of the samples in ``mask``."""
+        self._xy[mask] = 0.0
+        self._has_valid[mask] = False
+        self._last_command[mask] = 0.0
+
+    def _weights(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`ControllerTable.weights` (i, w) of each velocity (already on the grid)."""
+        g = self._grid
+        i = np.searchsorted(g, v, side="right") - 1
+        low, high = v <= g[0], v >= g[-1]
+        i = np.where(low, 0, np.where(high, g.size - 2, i))
+        inner = ~(low | high)
+        w = np.where(low, 0.0, 1.0)
+        j = i[inner]
+        w[inner] = (v[inner] - g[j]) / (g[j + 1] - g[j])
+        return i, w
+
+    def step(self, stamp_s: np.ndarray, measured: np.ndarray, velocity_mps: np.ndarray,
+             valid: np.ndarray, now_s: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One controller period of every sample (:meth:`ControllerRuntime.step`).
+
+        Parameters
+        ----------
+        stamp_s, now_s
+            Sample time of each measurement and the time it is used [s] (N,).
+        measured
+            (N, 4): pitch [rad], pitch rate [rad/s], drift [m], drift rate [m/s]
+            (the fields of :class:`Measurement`).
+        velocity_mps, valid
+            Measured velocity [m/s] and valid flag (N,).
+
+        Returns
+        -------
+        deflection_cmd_rad, scheduling_velocity_mps, status
+            Arrays (N,) of the fields of :class:`Command`.
+        """
+        rt, lim = self.runtime, self.runtime.limits
+        stamp_s = np.asarray(stamp_s, dtype=float)
+        now_s = np.asarray(now_s, dtype=float)
+        v = np.asarray(velocity_mps, dtype=float)
+        values = np.asarray(measured, dtype=float)[:, self._cols]
+        u = np.zeros(self.n)
+        status = np.full(self.n, STATUS_SAFE_ZERO, dtype=np.int64)
+        v_out = np.where(np.isfinite(v), v, np.nan)
+        # a non-finite now_s: the runtime's exception handler (reset, 0, NaN, SAFE_ZERO)
+        now_ok = np.isfinite(now_s)
+        all_now = bool(now_ok.all())
+        if not all_now:
+            self._reset(~now_ok)
+            v_out[~now_ok] = np.nan
+            now_s = np.where(now_ok, now_s, 0.0)
+        now_us = np.rint(now_s * 1e6).astype(np.int64)        # _us: round half to even
+        stamp_ok = np.isfinite(stamp_s)
+        stamp_us = np.rint(np.where(stamp_ok, stamp_s, 0.0) * 1e6).astype(np.int64)
+        newer = stamp_ok & (~self._has_stamp | (stamp_us > self._last_stamp_us))
+        age = now_us - stamp_us
+        ok = np.asarray(valid, dtype=bool) & newer & (age >= 0) & (age <= rt._max_age_us)
+        ok &= np.abs(values).__le__(self._bounds).all(axis=1)   # _plausible (False for NaN)
+        ok &= np.abs(v) <= lim.max_velocity_mps
+        seen = newer & (age >= 0)
+        if not all_now:
+            ok &= now_ok
+            seen &= now_ok
+        self._last_stamp_us = np.where(seen, stamp_us, self._last_stamp_us)
+        self._has_stamp |= seen
+        if ok.all():                                  # every measurement used
+            self._update(slice(None), stamp_s, values, v, now_us, u, v_out, status)
+            return u, v_out, status
+        # _hold_or_zero
+        hold = (~ok & now_ok & self._has_valid
+                & (now_us - self._last_valid_us <= rt._hold_us))
+        u[hold] = self._last_command[hold]
+        status[hold] = STATUS_HOLD_LAST
+        self._reset(~ok & now_ok & ~hold)
+        k = np.flatnonzero(ok)
+        if k.size:
+            self._update(k, stamp_s[k], values[k], v[k], now_us[k], u, v_out, status)
+        return u, v_out, status
+
+    def _reference(self, stamp_s: np.ndarray) -> np.ndarray:
+        """The guidance reference's row (:meth:`GuidanceReference.at`) at each sample time."""
+        at = self.runtime.reference.at
+        if (stamp_s == stamp_s[0]).all():             # one sample time (a batch's frame)
+            return at(float(stamp_s[0]))[None, :]
+        times, where = np.unique(stamp_s, return_inverse=True)
+        return np.array([at(float(t)) for t in times])[where.ravel()]
+
+    def _update(self, k, stamp_s, values, v, now_us, u, v_out, status) -> None:
+        """The scheduled update of the samples ``k`` (indices or a slice) whose measurement
+        is used (the part of :meth:`ControllerRuntime._step` after the checks), into ``u``,
+        ``v_out``, ``status``."""
+        rt, g = self.runtime, self._grid
+        n = rt._n
+        # _schedule: min(max(v, g0), g1) as Python's max and min choose
+        low = np.where(g[0] > v, g[0], v)
+        v_sched = np.where(g[-1] < low, g[-1], low)
+        st = np.where(v_sched != v, STATUS_VELOCITY_CLAMPED, STATUS_OK)
+        i, w = self._weights(v_sched)
+        S = rt._dS[i] * w[:, None, None]
+        S += rt._S[i]
+        xy = self._xy[k]
+        xy[:, n:] = values
+        ff = None
+        if rt.reference is not None:
+            refs = self._reference(stamp_s)
+            xy[:, n:] -= refs[:, self._ref_cols]
+            ff = refs[:, -1]
+        xy[:, n:] *= rt._sign
+        out = np.matmul(S, xy[:, :, None])[:, :, 0]
+        cmd = out[:, n].copy()
+        if ff is not None:
+            cmd += ff                             # the feed-forward of the reference
+        bad = ~(np.isfinite(cmd) & np.isfinite(out).all(axis=1))
+        xy[:, :n] = out[:, :n]
+        self._xy[k] = xy
+        lim = rt.limits.limit_rad
+        over = np.abs(cmd) > lim
+        if over.any():
+            cmd[over] = np.copysign(lim, cmd[over])
+            st[over] = STATUS_LIMITED             # more severe than OK and VELOCITY_CLAMPED
+        any_bad = bool(bad.any())
+        if any_bad:
+            cmd[bad], st[bad] = 0.0, STATUS_SAFE_ZERO
+        u[k], v_out[k], status[k] = cmd, v_sched, st
+        if not any_bad:
+            self._last_valid_us[k] = now_us
+            self._has_valid[k] = True
+            self._last_command[k] = cmd
+            return
+        kk = np.arange(self.n)[k]
+        good = kk[~bad]
+        self._last_valid_us[good] = now_us[~bad]
+        self._has_valid[good] = True
+        self._last_command[good] = cmd[~bad]
+        self._reset(kk[bad])

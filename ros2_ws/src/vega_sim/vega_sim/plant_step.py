@@ -202,28 +202,52 @@ class ParameterTrack:
         # access, the per-frame readers take the views
         times = (t_start_ms + refresh_ms * np.arange(n, dtype=np.int64)) / 1000.0
         columns = context.parameter_columns_at_times(times, self.deviations)
+        self._views: tuple[ParameterView, ...] | None = None
+        self._view_array: np.ndarray | None = None
         if columns is None:                          # a custom aerodynamic model
             self._columns: dict[str, np.ndarray] = {}
             self.params: Sequence[ModelParameters] = tuple(
                 context.parameters_at_times(times, self.deviations))
-            self.views: tuple[ParameterView, ...] = tuple(
+            self._views = tuple(
                 ParameterView(p.v_mps, p.q_pa, p.mach, p.h_m, p.rho_kgpm3, p.l_cp_m,
                               p.psi_t_ins, p.psi_r_ins, p.l_ins_m) for p in self.params)
         else:
             self._columns = columns
             self.params = _LazyParameters(context, columns, n)
-            c = {name: column.tolist() for name, column in columns.items()}
-            l_cp = (columns["x_cp_m"] - columns["x_cg_m"]).tolist()
-            l_ins = (self.params[0].x_ins_m - columns["x_cg_m"]).tolist()
-            self.views = tuple(
-                ParameterView(v, q, m, h, r, lcp, (t0, t1), (r0, r1), li)
-                for v, q, m, h, r, lcp, t0, t1, r0, r1, li in zip(
-                    c["v_mps"], c["q_pa"], c["mach"], c["h_m"], c["rho_kgpm3"], l_cp,
-                    c["psi_t_ins_0"], c["psi_t_ins_1"], c["psi_r_ins_0"], c["psi_r_ins_1"],
-                    l_ins))
         self._linear: LinearFrames | None = None
         self._nonlinear: list[NonlinearModel | None] = [None] * n
         self._kernel: tuple | None = None
+
+    @property
+    def views(self) -> tuple[ParameterView, ...]:
+        """The :class:`ParameterView` of every entry (built on first access from
+        :meth:`view_array`, then shared)."""
+        if self._views is None:
+            self._views = tuple(
+                ParameterView(v, q, m, h, r, lcp, (t0, t1), (r0, r1), li)
+                for v, q, m, h, r, lcp, t0, t1, r0, r1, li in self.view_array().tolist())
+        return self._views
+
+    def view_array(self) -> np.ndarray:
+        """The fields of every entry's :class:`ParameterView` as rows of a read-only float
+        array (entries, 11), the mode-shape pairs flattened: v_mps, q_pa, mach, h_m,
+        rho_kgpm3, l_cp_m, psi_t_ins (2), psi_r_ins (2), l_ins_m. The views are these numbers
+        (the batched engine, :mod:`vega_sim.batch`, reads the array)."""
+        if self._view_array is None:
+            if self._columns:
+                c = self._columns
+                rows = np.column_stack((
+                    c["v_mps"], c["q_pa"], c["mach"], c["h_m"], c["rho_kgpm3"],
+                    c["x_cp_m"] - c["x_cg_m"], c["psi_t_ins_0"], c["psi_t_ins_1"],
+                    c["psi_r_ins_0"], c["psi_r_ins_1"], self.params[0].x_ins_m - c["x_cg_m"]))
+                rows = rows.astype(float, copy=False)
+            else:
+                rows = np.array([(p.v_mps, p.q_pa, p.mach, p.h_m, p.rho_kgpm3, p.l_cp_m,
+                                  *p.psi_t_ins, *p.psi_r_ins, p.l_ins_m) for p in self._views],
+                                dtype=float)
+            rows.setflags(write=False)
+            self._view_array = rows
+        return self._view_array
 
     @property
     def n_frames(self) -> int:
@@ -422,8 +446,7 @@ class PlantWind:
             turbulence != "none" and not thesis_constant_dryden)
         self._thesis = bool(thesis_constant_dryden)
         if self._thesis:
-            h = [p.h_m for p in track.views]
-            v = [p.v_mps for p in track.views]
+            h, v = track.view_array()[:, 3].tolist(), track.view_array()[:, 0].tolist()
             a, g = thesis_dryden_coefficients(h, v, data, turbulence, dt_ms / 1000.0)
             self._a, self._g = a.tolist(), g.tolist()
         self._state = 0.0
@@ -436,10 +459,10 @@ class PlantWind:
         :meth:`WindModel.entry_steps` computes them at once."""
         if self._sequence is None:
             track = self._track
-            views = track.views
+            views = track.view_array()                  # the views' h_m and v_mps
             self._sequence = self._model.entry_steps(
                 track.t_start_ms, self._dt_ms, track.refresh_ms // self._dt_ms,
-                [p.h_m for p in views], [p.v_mps for p in views])
+                views[:, 3].tolist(), views[:, 0].tolist())
             self._array = np.array(self._sequence)
         return self._sequence
 
@@ -528,15 +551,27 @@ class PlantStep:
             consts, tables = track.kernel_inputs()
             self._rk4_frame, self._kernel_args = compiled().rk4_frame, (consts, *tables)
         self._winds, self._wind_array = self._draw_winds()
-        self._out = self._truth()
+        self._out: TruthOut | None = None      # the truth at t_start, formed on first use
 
     @property
     def t_ms(self) -> int:
         """Current frame time [ms]."""
         return self._t_ms
 
+    @property
+    def state(self) -> np.ndarray:
+        """Copy of the plant state at the current frame time (:data:`STATES` order)."""
+        return self._x.copy()
+
+    @property
+    def wind(self) -> PlantWind:
+        """The plant's wind source."""
+        return self._wind
+
     def output(self) -> TruthOut:
         """Truth at the current frame time."""
+        if self._out is None:
+            self._out = self._truth()
         return self._out
 
     def _draw_winds(self) -> tuple[list[float], np.ndarray]:
