@@ -36,7 +36,7 @@ from vega_bringup import rosenv
 __all__ = ["COMMANDS", "build_parser", "main"]
 
 COMMANDS = ("trajectory", "linearize", "plots", "synth", "design", "guidance", "margins",
-            "robust", "sil", "mc", "verify", "ship", "check", "bag", "replay", "node")
+            "robust", "sil", "mc", "wind", "verify", "ship", "check", "bag", "replay", "node")
 """Sub-command modules, in the order ``vega --help`` lists them."""
 
 _PRINTED_VARIABLES = (
