@@ -41,11 +41,12 @@ import numpy as np
 
 from vega_campaign.campaign import _fail, _keys, _number
 from vega_core.documents import parse_yaml, read_text
+from vega_model.wind import WindTable
 
 __all__ = ["FINE_STEP_M", "MODES", "DEFAULT_MODE", "DEFAULT_LAG_S", "COLUMNS", "Site",
            "WindSamples", "default_site_path", "load_site", "parse_site", "climate_levels",
            "level_moments", "in_plane_moments", "change_rms_mps", "small_scale_sigma_mps",
-           "sample_profiles", "write_samples", "plot_samples"]
+           "sample_profiles", "sample_table", "write_samples", "plot_samples"]
 
 FINE_STEP_M = 100.0
 """Spacing of the sampled profiles [m]. Assumption: the vehicle climbs 100 m in 0.2–1 s over
@@ -483,6 +484,37 @@ def sample_profiles(site: Site, month: int, n: int | None = None, seed: int = 0,
                        measured_wind_mps=parts["measured"], flown_wind_mps=parts["flown"],
                        climate_mps=parts["climate"], small_scale_mps=parts["small"],
                        change_mps=parts["change"])
+
+
+def sample_table(samples: WindSamples, sample: int, profile: str = "flown") -> WindTable:
+    """One sample's profile as a table a scenario flies (``wind.profile``, vega_sim.scenario)
+    or the guidance is re-biased to (vega_reference.rebias).
+
+    Parameters
+    ----------
+    samples
+        Drawn profiles (:func:`sample_profiles`).
+    sample
+        The sample index i (one of ``samples.indices``).
+    profile
+        ``"flown"`` (what the vehicle meets) or ``"measured"`` (the sounding).
+
+    Returns
+    -------
+    vega_model.wind.WindTable
+        On ``samples.altitude_m``, in the plant's sign (+: air toward +z); its ``source``
+        names the month, seed, sample, lag, mode and profile.
+    """
+    columns = {"flown": samples.flown_wind_mps, "measured": samples.measured_wind_mps}
+    if profile not in columns:
+        raise ValueError(f"profile must be 'flown' or 'measured', got {profile!r}")
+    rows = np.flatnonzero(samples.indices == int(sample))
+    if rows.size != 1:
+        raise ValueError(f"sample {sample} is not among the drawn samples")
+    return WindTable(samples.altitude_m, columns[profile][rows[0]],
+                     f"vega_campaign.wind_environment month {samples.month} seed "
+                     f"{samples.seed} sample {int(sample)} lag {samples.lag_s:g} s "
+                     f"{samples.mode} {profile}")
 
 
 def write_samples(samples: WindSamples, out: str | Path) -> Path:

@@ -37,12 +37,14 @@ from vega_gnc.guidance_reference import (FORMAT_VERSION, GuidanceReference,
 from vega_gnc.controller_table import MEASUREMENT_NAMES
 from vega_model.dynamics import linear_model
 from vega_model.parameters import ModelContext, default_context
-from vega_model.wind import wind_profile_mps
+from vega_model.vehicle_data import VehicleData
+from vega_model.wind import WindTable, wind_profile_mps
 
 from vega_loops.export import git_revision, library_versions, write_checked_npz
 
 __all__ = ["GuidanceWeights", "DesignWind", "GuidanceDesign", "design_reference",
-           "write_guidance_reference", "hold_attitude_q_alpha", "plot_guidance"]
+           "design_from_solution", "rigid_models", "write_guidance_reference",
+           "hold_attitude_q_alpha", "plot_guidance"]
 
 
 @dataclass(frozen=True)
@@ -68,11 +70,33 @@ class GuidanceWeights:
 
 @dataclass(frozen=True)
 class DesignWind:
-    """The wind a reference is designed for: ``scale · V_w(h − shift_m)`` (Eq. 2.54)."""
+    """The wind a reference is designed for: ``scale · V(h − shift_m)``, V the profile of
+    Eq. 2.54 or, if ``table`` is given, that table (a day-of-launch sounding; linear in
+    altitude, end values held: :class:`vega_model.wind.WindTable`, the law the plant flies)."""
 
     scale: float = 1.0
     shift_m: float = 0.0
     name: str = "thesis Eq. 2.54 steady profile V_w(h) (vehicle.yaml wind.profile)"
+    table: WindTable | None = None
+
+    @classmethod
+    def from_table(cls, altitude_m, wind_mps, name: str = "measured profile (table)",
+                   source: str = "") -> "DesignWind":
+        """The design wind of a tabulated profile (altitudes [m], wind along +z [m/s]).
+
+        Raises
+        ------
+        vega_model.wind.WindTableError
+            One line naming the column and row of a malformed table."""
+        return cls(name=name, table=WindTable(altitude_m, wind_mps, source))
+
+    def along(self, altitudes_m, data: VehicleData) -> np.ndarray:
+        """The design wind [m/s] at each of the altitudes ``altitudes_m`` [m]."""
+        if self.table is None:
+            return np.array([wind_profile_mps(h, data, self.scale, self.shift_m)
+                             for h in altitudes_m])
+        shifted = np.asarray(altitudes_m, dtype=float) - self.shift_m
+        return self.scale * self.table.values(shifted)
 
 
 @dataclass(frozen=True)
@@ -91,7 +115,7 @@ class GuidanceDesign:
     summary: dict[str, Any]
 
 
-def _rigid_models(times_s, context: ModelContext, dt_s: float):
+def rigid_models(times_s, context: ModelContext, dt_s: float):
     """Per time: ZOH transition (Φ, Γβ, Γw) of the rigid model, the Qα row and wind
     feed-through, the rigid INS rows, and the parameters."""
     phis, gam_b, gam_w, cq, dq, cins, params = [], [], [], [], [], [], []
@@ -119,12 +143,9 @@ def hold_attitude_q_alpha(times_s, wind: DesignWind = DesignWind(),
     """Qα [Pa·rad] of a vehicle that holds the nominal attitude and path (zero deviations)
     in the design wind: the load the guidance bias removes."""
     context = context if context is not None else default_context()
-    out = []
-    for t in times_s:
-        p = context.parameters(float(t))
-        _, _, _, D = linear_model(p)
-        out.append(D[0, 2] * wind_profile_mps(p.h_m, context.vehicle, wind.scale, wind.shift_m))
-    return np.array(out)
+    params = [context.parameters(float(t)) for t in times_s]
+    vw = wind.along([p.h_m for p in params], context.vehicle)
+    return np.array([linear_model(p)[3][0, 2] * v for p, v in zip(params, vw)])
 
 
 def design_reference(wind: DesignWind = DesignWind(),
@@ -162,9 +183,8 @@ def design_reference(wind: DesignWind = DesignWind(),
     n_steps = int(round(weights.t_end_s / weights.dt_s))
     t = np.arange(n_steps + 1) * weights.dt_s
     t0 = time.perf_counter()
-    phi, gb, gw, cq, dq, cins, params = _rigid_models(t, context, weights.dt_s)
-    vw = np.array([wind_profile_mps(p.h_m, context.vehicle, wind.scale, wind.shift_m)
-                   for p in params])
+    phi, gb, gw, cq, dq, cins, params = rigid_models(t, context, weights.dt_s)
+    vw = wind.along([p.h_m for p in params], context.vehicle)
     mach = np.array([p.mach for p in params])
     env = np.interp(mach, spec.envelope_mach, spec.envelope_pa_rad)
     progress(f"guidance: {t.size} rigid models ({time.perf_counter() - t0:.1f} s); "
@@ -191,12 +211,29 @@ def design_reference(wind: DesignWind = DesignWind(),
         raise RuntimeError(f"guidance problem: solver status {problem.status}")
     progress(f"guidance: solved in {solve_s:.1f} s (cost {problem.value:.4g})")
 
+    return design_from_solution(
+        t, np.array(x.value), np.asarray(beta.value), vw, weights,
+        (phi, gb, gw, cq, dq, cins, mach, env),
+        {"name": "CLARABEL", "status": problem.status, "solve_s": solve_s,
+         "cost": float(problem.value)})
+
+
+def design_from_solution(t: np.ndarray, states: np.ndarray, b: np.ndarray, vw: np.ndarray,
+                         weights: GuidanceWeights, models: tuple,
+                         solver: Mapping[str, Any]) -> GuidanceDesign:
+    """The :class:`GuidanceDesign` of a solved guidance problem: the INS reference, the load
+    of the reference flight and of holding the nominal attitude, and the summary.
+
+    ``states`` (N, 4) and ``b`` (N,) are the solver's; ``models`` = (Φ, Γβ, Γw, Qα row, Qα
+    wind feed-through, INS rows, Mach, envelope) on the grid ``t``; ``solver`` goes to the
+    summary as it is."""
+    phi, gb, gw, cq, dq, cins, mach, env = models
     # The states as solved (not re-propagated from the feed-forward: the rigid body is
     # aerodynamically unstable, so an open-loop propagation amplifies the solver's residual);
     # the dynamics residual is recorded.
-    states = np.array(x.value)
+    states = np.array(states, dtype=float)
     states[0] = 0.0             # the constraint x_0 = 0, exactly (not to the solver's 1e-13)
-    b = np.asarray(beta.value)
+    b = np.array(b, dtype=float)
     residual = states[1:] - (np.einsum("kij,kj->ki", phi[:-1], states[:-1])
                              + gb[:-1] * b[:-1, None] + gw[:-1] * vw[:-1, None])
     q_alpha = np.einsum("ij,ij->i", cq, states) + dq * vw
@@ -216,8 +253,7 @@ def design_reference(wind: DesignWind = DesignWind(),
         "beta_ff_max_deg": float(np.degrees(np.abs(b).max())),
         "wind_max_mps": float(np.abs(vw).max()),
         "dynamics_residual_max": [float(v) for v in np.abs(residual).max(axis=0)],
-        "solver": {"name": "CLARABEL", "status": problem.status, "solve_s": solve_s,
-                   "cost": float(problem.value)},
+        "solver": dict(solver),
     }
     return GuidanceDesign(t_s=t, states=states, reference=reference, beta_ff_rad=b,
                           wind_mps=vw, q_alpha_pa_rad=q_alpha, q_alpha_hold_pa_rad=hold,

@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from vega_model.parameters import default_context
-from vega_model.wind import DrydenTurbulence, GustProfile, ProfileChange, WindModel
+from vega_model.wind import (DrydenTurbulence, GustProfile, ProfileChange, WindModel,
+                             WindTable)
 
 
 def _bits(values):
@@ -80,6 +81,8 @@ def test_entry_steps_equal_steps_per_entry(data, steps_per_entry, skip):
     (False, "moderate", GustProfile(0.0, 0.5, 4.0), ProfileChange()),
     (True, "none", GustProfile(19.995, 1.0, 9.0), ProfileChange(-0.5, 1000.0)),
     (False, "none", None, ProfileChange()),
+    (WindTable([0.0, 3000.0, 11_000.0, 30_000.0], [2.0, 18.5, -6.25, 4.0]), "light",
+     GustProfile(12.3456, 2.0, -9.0), ProfileChange(1.3, -800.0)),
 ])
 def test_wind_entry_steps_equal_steps_per_entry(data, profile, turbulence, gust, change):
     """A 20 s track of 5 ms entries (altitudes and speeds of the shipped flight, perturbed):

@@ -1,8 +1,9 @@
 """Wind: steady altitude profile, Dryden turbulence and a discrete 1-cosine gust.
 
 Thesis §2.12.5: the profile V_w(h) (Eq. 2.54, A = 14 m/s up to 17.5 km, zero above 20 km)
-and the Dryden filter (Eq. 2.53) with σ_w(h), L_w(h) from Table 2.4 (light, moderate,
-severe). Deviation, recorded in docs/ENVIRONMENT_MODELS.md: Eq. 2.53 converts the
+— or, in its place, a tabulated profile (:class:`WindTable`: a sampled or measured sounding,
+docs/WINDS.md) — and the Dryden filter (Eq. 2.53) with σ_w(h), L_w(h) from Table 2.4
+(light, moderate, severe). Deviation, recorded in docs/ENVIRONMENT_MODELS.md: Eq. 2.53 converts the
 spatial turbulence spectrum to time with the profile speed V_w(h); the standard Dryden
 form uses the vehicle's airspeed V (the speed at which the vehicle flies through the
 frozen turbulence field), and Eq. 2.53's gain is unbounded as V_w → 0 (17.5–20 km). Here
@@ -26,6 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from vega_core.errors import BadInput
 from vega_model.vehicle_data import VehicleData
 
 __all__ = [
@@ -36,6 +38,10 @@ __all__ = [
     "DrydenTurbulence",
     "GustProfile",
     "ProfileChange",
+    "WindTable",
+    "WindTableError",
+    "MAX_TABLE_WIND_MPS",
+    "MAX_TABLE_ROWS",
     "WindComponents",
     "WindModel",
 ]
@@ -396,6 +402,116 @@ class DrydenTurbulence:
         return out
 
 
+# Largest steady wind a table may hold [m/s] (assumption: ≈ 1.5 × the 99th-percentile speed
+# of the windiest month and altitude of the site tables, Cape Canaveral at 12 km in January,
+# 81 m/s (docs/WINDS.md §2); a faster value is an error in the table, not a wind).
+MAX_TABLE_WIND_MPS = 120.0
+# Largest number of rows of a table (assumption: 1 m spacing over 100 km; more is not a
+# sounding).
+MAX_TABLE_ROWS = 100_000
+
+
+class WindTableError(BadInput):
+    """A malformed :class:`WindTable`: ``<key>: <problem>`` (``key`` and ``problem`` kept, so
+    that a file's loader can name its own field)."""
+
+    def __init__(self, key: str, problem: str):
+        super().__init__(f"{key}: {problem}")
+        self.key, self.problem = key, problem
+
+
+def _table_scalar(h: float, alt: tuple[float, ...], wind: tuple[float, ...]) -> float:
+    """Linear interpolation of (alt, wind) at one altitude, end values held (NaN in, NaN out)."""
+    if h != h:
+        return math.nan
+    if h <= alt[0]:
+        return wind[0]
+    if h >= alt[-1]:
+        return wind[-1]
+    i = bisect_right(alt, h)                       # alt[i − 1] <= h < alt[i]
+    h0, w0, w1 = alt[i - 1], wind[i - 1], wind[i]
+    return w0 + (w1 - w0) * ((h - h0) / (alt[i] - h0))
+
+
+@dataclass(frozen=True)
+class WindTable:
+    """A steady wind profile tabulated over altitude: flown in place of Eq. 2.54.
+
+    Attributes
+    ----------
+    altitude_m
+        Geometric altitudes [m], strictly increasing, at least 2.
+    wind_mps
+        Wind along +z at each altitude [m/s] (the sign convention of :class:`WindModel`),
+        finite, |v| <= :data:`MAX_TABLE_WIND_MPS`.
+    source
+        Where the table came from (free text, one line; e.g. a file and its SHA-256).
+
+    Notes
+    -----
+    Between rows the wind is linear in altitude; below the first row the first value is held,
+    above the last the last (a sounding ends somewhere: its last value is the best estimate
+    above it, and above ≈ 30 km the dynamic pressure makes the wind's load negligible). The
+    values are stored as tuples of floats, so a table is hashable and its evaluation is the
+    same in every process. A malformed table raises :class:`WindTableError` naming the attribute.
+    """
+
+    altitude_m: tuple[float, ...]
+    wind_mps: tuple[float, ...]
+    source: str = ""
+
+    def __post_init__(self):
+        alt = _float_tuple(self.altitude_m, "altitude_m")
+        wind = _float_tuple(self.wind_mps, "wind_mps")
+        if len(alt) != len(wind):
+            raise WindTableError("wind_mps", f"{len(wind)} values for {len(alt)} altitudes")
+        if len(alt) < 2:
+            raise WindTableError("altitude_m", f"needs at least 2 rows, got {len(alt)}")
+        if len(alt) > MAX_TABLE_ROWS:
+            raise WindTableError("altitude_m", f"at most {MAX_TABLE_ROWS} rows, got {len(alt)}")
+        for key, values in (("altitude_m", alt), ("wind_mps", wind)):
+            bad = next((i for i, v in enumerate(values) if not math.isfinite(v)), None)
+            if bad is not None:
+                raise WindTableError(f"{key}[{bad}]", f"must be finite, got {values[bad]!r}")
+        bad = next((i for i in range(1, len(alt)) if not alt[i] > alt[i - 1]), None)
+        if bad is not None:
+            raise WindTableError(f"altitude_m[{bad}]", f"must be strictly increasing, got "
+                                 f"{alt[bad]!r} after {alt[bad - 1]!r}")
+        bad = next((i for i, v in enumerate(wind) if abs(v) > MAX_TABLE_WIND_MPS), None)
+        if bad is not None:
+            raise WindTableError(f"wind_mps[{bad}]", f"must be within ±{MAX_TABLE_WIND_MPS:g} "
+                                 f"m/s, got {wind[bad]!r}")
+        if not isinstance(self.source, str) or "\n" in self.source:
+            raise WindTableError("source", "must be one line of text")
+        object.__setattr__(self, "altitude_m", alt)
+        object.__setattr__(self, "wind_mps", wind)
+
+    def at(self, h_m: float) -> float:
+        """The wind [m/s] at altitude ``h_m`` [m] (linear, ends held; NaN in, NaN out)."""
+        return _table_scalar(float(h_m), self.altitude_m, self.wind_mps)
+
+    def values(self, h_m) -> np.ndarray:
+        """:meth:`at` at each of the altitudes ``h_m`` [m] (the same numbers, as an array)."""
+        alt, wind = self.altitude_m, self.wind_mps
+        h = np.asarray(h_m, dtype=float)
+        return np.array([_table_scalar(x, alt, wind) for x in h.ravel().tolist()],
+                        dtype=float).reshape(h.shape)
+
+
+def _float_tuple(values, key: str) -> tuple[float, ...]:
+    if isinstance(values, (str, bytes, dict)) or not hasattr(values, "__len__"):
+        raise WindTableError(key, f"must be a list of numbers, got {type(values).__name__}")
+    if isinstance(values, np.ndarray) and values.ndim != 1:
+        raise WindTableError(key, f"must be one-dimensional, got shape {values.shape}")
+    out = []
+    for i, v in enumerate(values):
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer,
+                                                                  np.floating)):
+            raise WindTableError(f"{key}[{i}]", f"must be a number, got {v!r}")
+        out.append(float(v))
+    return tuple(out)
+
+
 @dataclass(frozen=True)
 class GustProfile:
     """Discrete 1-cosine gust along +z.
@@ -471,7 +587,8 @@ class WindModel:
     data
         Vehicle data.
     profile
-        Include the steady profile V_w(h) of Eq. 2.54.
+        The steady profile: True, V_w(h) of Eq. 2.54; False, none; a :class:`WindTable`,
+        that table (``change`` applies to either).
     turbulence
         Dryden intensity, one of :data:`INTENSITIES` (``"none"`` disables it).
     gust
@@ -485,13 +602,20 @@ class WindModel:
         1/``actuator.physics_rate_hz``.
     """
 
-    def __init__(self, data: VehicleData, profile: bool = True, turbulence: str = "none",
-                 gust: GustProfile | None = None, seed: int = 0, dt_s: float | None = None,
-                 change: ProfileChange = ProfileChange()):
-        self.profile = bool(profile)
+    def __init__(self, data: VehicleData, profile: bool | WindTable = True,
+                 turbulence: str = "none", gust: GustProfile | None = None, seed: int = 0,
+                 dt_s: float | None = None, change: ProfileChange = ProfileChange()):
+        self.table = profile if isinstance(profile, WindTable) else None
+        self.profile = self.table is not None or bool(profile)
         self.gust = gust
         self.change = change
-        self._profile_const = _profile_constants(data)
+        # the steady profile's shape at one altitude and its constants (Eq. 2.54 or the table)
+        if self.table is not None:
+            self._shape = _table_scalar
+            self._profile_const = (self.table.altitude_m, self.table.wind_mps)
+        else:
+            self._shape = _profile_scalar
+            self._profile_const = _profile_constants(data)
         self.turbulence = DrydenTurbulence(data, turbulence, seed, dt_s)
 
     def reset(self) -> None:
@@ -502,8 +626,8 @@ class WindModel:
         """Advance one step; return every part of the wind at time ``t_s`` [s], altitude
         ``h_m`` [m] and airspeed [m/s]. Raises ValueError on non-finite altitude/airspeed."""
         turb = self.turbulence.step(h_m, airspeed_mps)
-        prof = (self.change.scale * _profile_scalar(h_m - self.change.shift_m,
-                                                    *self._profile_const)
+        prof = (self.change.scale * self._shape(h_m - self.change.shift_m,
+                                                *self._profile_const)
                 if self.profile else 0.0)
         gust = self.gust.velocity_mps(t_s) if self.gust is not None else 0.0
         return WindComponents(prof, turb, gust, prof + turb + gust)
@@ -518,8 +642,8 @@ class WindModel:
         not depend on the time."""
         turb = self.turbulence.steps(len(times_s),
                                      self.turbulence.coefficients(h_m, airspeed_mps))
-        prof = (self.change.scale * _profile_scalar(h_m - self.change.shift_m,
-                                                    *self._profile_const)
+        prof = (self.change.scale * self._shape(h_m - self.change.shift_m,
+                                                *self._profile_const)
                 if self.profile else 0.0)
         gust = self.gust
         if gust is None:
@@ -547,7 +671,8 @@ class WindModel:
         if self.profile:
             scale, shift, const = self.change.scale, self.change.shift_m, self._profile_const
             shifted = (np.asarray(h_m, dtype=float) - shift).tolist()
-            prof = np.array([scale * _profile_scalar(h, *const) for h in shifted])
+            shape = self._shape
+            prof = np.array([scale * shape(h, *const) for h in shifted])
         else:
             prof = np.zeros(n_e)
         values = np.repeat(prof, steps_per_entry) + values

@@ -39,7 +39,8 @@ from vega_model.dynamics import (STATES, NonlinearModel, alpha_and_q_alpha, angl
                                  linear_model)
 from vega_model.parameters import ModelContext, ModelParameters
 from vega_model.vehicle_data import VehicleData
-from vega_model.wind import GustProfile, ProfileChange, WindModel, turbulence_params
+from vega_model.wind import (GustProfile, ProfileChange, WindModel, WindTable,
+                             turbulence_params)
 
 __all__ = [
     "PLANT_MODELS", "THESIS_DRYDEN_WEIGHT", "TruthOut", "LinearFrames", "parameters_at",
@@ -418,7 +419,8 @@ class PlantWind:
         reference trajectory (the wind is then independent of the plant state, so the linear
         and nonlinear plants see the same wind sequence).
     profile, turbulence, gust, seed
-        As :class:`vega_model.wind.WindModel` (``gust`` a :class:`GustProfile` or None).
+        As :class:`vega_model.wind.WindModel` (``profile`` True for Eq. 2.54, False for none,
+        or a :class:`vega_model.wind.WindTable`; ``gust`` a :class:`GustProfile` or None).
     thesis_constant_dryden
         If true, the turbulence is not the seeded random Dryden process but the thesis'
         deterministic input (thesis §5.2, Fig. 5.2): W_w = 3 times the response of the
@@ -431,7 +433,7 @@ class PlantWind:
         Change of the steady profile (:class:`vega_model.wind.ProfileChange`; default none).
     """
 
-    def __init__(self, data: VehicleData, track: ParameterTrack, *, profile: bool,
+    def __init__(self, data: VehicleData, track: ParameterTrack, *, profile: bool | WindTable,
                  turbulence: str, gust: GustProfile | None, seed: int,
                  thesis_constant_dryden: bool = False, dt_ms: int = 1,
                  change: ProfileChange | None = None):
@@ -442,7 +444,7 @@ class PlantWind:
         self._track = track
         self._dt_ms = int(dt_ms)
         # a WindModel with every part off returns exactly 0.0: skip it
-        self._active = bool(profile) or gust is not None or (
+        self._active = self._model.profile or gust is not None or (
             turbulence != "none" and not thesis_constant_dryden)
         self._thesis = bool(thesis_constant_dryden)
         if self._thesis:

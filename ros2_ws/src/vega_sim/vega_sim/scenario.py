@@ -19,7 +19,8 @@ File format (SI units, radians; ``#`` comments allowed)::
                                     # q2_dot, beta_rad (nozzle at rest); each within a
                                     # plausible range (_INITIAL_STATE_LIMITS)
     wind:
-      profile: false                # steady profile V_w(h), thesis Eq. 2.54
+      profile: false                # steady profile: true (V_w(h), thesis Eq. 2.54), false
+                                    # (none), or a table flown in its place (below)
       turbulence: light             # none | light | moderate | severe (thesis Table 2.4)
       thesis_constant_dryden: true  # optional (false): the thesis' deterministic wind, below
       gust: null                    # or {start_s: 46.3, amplitude_mps: 9, duration_s: 2};
@@ -36,6 +37,18 @@ File format (SI units, radians; ``#`` comments allowed)::
     off_design: "reason"            # optional: the scenario lies outside the design envelope;
                                     # `vega sil run` reports its requirement verdict but
                                     # does not gate on it (health checks still gate)
+
+A tabulated profile (:class:`vega_model.wind.WindTable`: linear in altitude, end values
+held; ``profile_scale``/``profile_shift_m`` apply to it as to Eq. 2.54) is given inline::
+
+      profile:
+        altitude_m: [0.0, 100.0, ...]   # strictly increasing, >= 2 rows
+        wind_mps: [0.0, 1.2, ...]       # along +z, finite, within ±MAX_TABLE_WIND_MPS
+        source: "..."                   # optional: where it came from (one line)
+
+Inline, not a file beside the scenario: a scenario's text travels alone — the SIL recorder
+stores it in the bag, ``vega check`` and ``vega replay`` parse it from there, ``vega mc rerun``
+writes it anew — so it must hold everything it flies.
 
 ``thesis_constant_dryden``: the thesis (§5.2, Fig. 5.2) set its wind input to a constant 1,
 which its weight W_w = 3 (§4.5.1) scaled before the Dryden filter (Eq. 2.53). Here: 3 × the
@@ -62,7 +75,7 @@ from vega_core.documents import parse_yaml, read_text
 from vega_core.errors import BadArgument, BadFile, BadInput
 from vega_model.uncertainty import UncertaintySet
 from vega_model.vehicle_data import VehicleData, load_vehicle_data
-from vega_model.wind import INTENSITIES
+from vega_model.wind import INTENSITIES, WindTable, WindTableError
 from vega_gnc.guidance_reference import DEFAULT_GUIDANCE, NO_GUIDANCE
 # Largest profile change a scenario may fly (assumption: beyond three times the design speed
 # or a 10 km shift it is another wind, not a change of this one).
@@ -104,7 +117,7 @@ class GustSettings:
 class WindSettings:
     """Wind of a scenario (thesis §2.12.5; see the module docstring)."""
 
-    profile: bool = True
+    profile: bool | WindTable = True
     turbulence: str = "light"
     thesis_constant_dryden: bool = False
     gust: GustSettings | None = None
@@ -292,6 +305,24 @@ def _string(value: Any, key: str, where: _Where) -> str:
     return value
 
 
+_TABLE_KEYS = ("altitude_m", "wind_mps")
+
+
+def _profile(value: Any, where: _Where) -> bool | WindTable:
+    """``wind.profile``: true/false, or a table (module docstring)."""
+    key = "wind.profile"
+    if isinstance(value, bool):
+        return value
+    if not isinstance(value, Mapping):
+        raise where.error(key, f"must be true, false or a table, got {value!r}")
+    _mapping(value, key, where, _TABLE_KEYS, ("source",))
+    source = _string(value.get("source", ""), f"{key}.source", where)
+    try:
+        return WindTable(value["altitude_m"], value["wind_mps"], source)
+    except WindTableError as exc:
+        raise where.error(f"{key}.{exc.key}", exc.problem) from None
+
+
 def parse_scenario(text: str, source: str = "<scenario>",
                    expected_name: str | None = None) -> Scenario:
     """Parse and validate the YAML text of a scenario.
@@ -336,7 +367,7 @@ def parse_scenario(text: str, source: str = "<scenario>",
             duration_s=_number(g.get("duration_s", data["wind.gust.duration_s"]),
                                "wind.gust.duration_s", where))
     wind_settings = WindSettings(
-        profile=_boolean(wind["profile"], "wind.profile", where),
+        profile=_profile(wind["profile"], where),
         turbulence=_string(wind["turbulence"], "wind.turbulence", where),
         thesis_constant_dryden=_boolean(wind.get("thesis_constant_dryden", False),
                                         "wind.thesis_constant_dryden", where),
@@ -392,7 +423,7 @@ def dump_scenario(scenario: Scenario) -> str:
         "t_start_s": float(scenario.t_start_s), "t_end_s": float(scenario.t_end_s),
         "plant": scenario.plant,
         "initial_state": {k: float(v) for k, v in vars(scenario.initial_state).items()},
-        "wind": {"profile": wind.profile, "turbulence": wind.turbulence,
+        "wind": {"profile": _dump_profile(wind.profile), "turbulence": wind.turbulence,
                  "thesis_constant_dryden": wind.thesis_constant_dryden, "gust": gust,
                  "profile_scale": float(wind.profile_scale),
                  "profile_shift_m": float(wind.profile_shift_m)},
@@ -405,6 +436,15 @@ def dump_scenario(scenario: Scenario) -> str:
     import yaml
 
     return yaml.safe_dump(tree, sort_keys=False)
+
+
+def _dump_profile(profile: bool | WindTable):
+    if not isinstance(profile, WindTable):
+        return profile
+    out = {"altitude_m": list(profile.altitude_m), "wind_mps": list(profile.wind_mps)}
+    if profile.source:
+        out["source"] = profile.source
+    return out
 
 
 def _table_time_range_s() -> tuple[float, float]:
@@ -454,6 +494,9 @@ def _validate(s: Scenario, data: VehicleData) -> None:
     limit = data["actuator.position_limit_rad"]
     if abs(s.initial_state.beta_rad) > limit:
         raise _FieldError("initial_state.beta_rad", f"|beta| must be <= the stop {limit:.6g} rad")
+    if not isinstance(s.wind.profile, (bool, WindTable)):
+        raise _FieldError("wind.profile", f"must be true, false or a WindTable, "
+                                          f"got {s.wind.profile!r}")
     if s.wind.turbulence not in INTENSITIES:
         raise _FieldError("wind.turbulence", f"must be one of {', '.join(INTENSITIES)}, "
                                              f"got {s.wind.turbulence!r}")
