@@ -101,9 +101,13 @@ def test_json_holds_the_same_verdict(good_bag, tmp_path, capsys):
     line = next(x for x in out.splitlines() if x.startswith("Load performance"))
     assert f"{abs(math.degrees(qa[k])):.6g} Pa*deg at {check.result.t_s[k]:.3f} s" in line
     # the informational 3°·Q line: printed, in the JSON, never gating
-    (info,) = verdict["informational"]
+    (info,) = [x for x in verdict["informational"] if x["key"] == "q_alpha_objective"]
     assert info["key"] == "q_alpha_objective" and info["gating"] is False
     assert any(x.startswith("Load objective") and "info: " in x for x in out.splitlines())
+    # the constant allowable of the flight-day sign-off (REQUIREMENTS.md §6): printed, never gating
+    (allow,) = [x for x in verdict["informational"] if x["key"] == "q_alpha_allowable"]
+    assert allow["gating"] is False
+    assert any(x.startswith("Load allowable") and "info: " in x for x in out.splitlines())
     sensitivity = verdict["q_alpha_sensitivity"]
     assert sensitivity["alpha_max_deg"] == 4.0 and sensitivity["passed"] is True
     assert sensitivity["alpha_flip_deg"] <= 4.0 and "Qα sensitivity" in out

@@ -90,8 +90,9 @@ def test_q_alpha_objective_is_met_at_the_objective():
     """The informational 3°·Q line passes with margin exactly 0 (≤ the objective)."""
     obj = SPEC.objective(MACH)
     r = _eval(q_alpha_pa_rad=obj.copy())
-    (line,) = r.informational
+    line, allowable = r.informational
     assert line.key == "q_alpha_objective" and line.margin == 0.0 and line.passed
+    assert allowable.key == "q_alpha_allowable" and allowable.passed
     assert not line.gating and line.thesis is None
 
 

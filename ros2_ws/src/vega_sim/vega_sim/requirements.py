@@ -83,6 +83,8 @@ _ROWS = {
 _INFO_ROWS = {
     "q_alpha_objective": ("q_alpha_objective", "Pa*rad", "Load objective 3°·Q (Eq. 4.24)", "Qα",
                           "Pa*deg"),
+    "q_alpha_allowable": ("q_alpha_allowable", "Pa*rad", "Load allowable (max-Q sized)", "Qα",
+                          "Pa*deg"),
 }
 
 
@@ -113,7 +115,10 @@ class RequirementSpec:
 
     ``objective_mach``/``objective_pa_rad`` are the informational Qα line (the thesis' 3°
     objective; None when the file has no ``q_alpha_objective``); ``envelope_definition`` the
-    envelope's parameters (None when the file gives none).
+    envelope's parameters (None when the file gives none); ``allowable_pa_rad`` the constant
+    Qα allowable sized at max-Q (docs/REQUIREMENTS.md §6; None when the file has no
+    ``q_alpha_allowable``): evaluated as an informational line, and the load requirement of
+    :attr:`RequirementReport.passed_with_allowable`.
     """
 
     path: str
@@ -129,6 +134,7 @@ class RequirementSpec:
     objective_mach: np.ndarray | None = None
     objective_pa_rad: np.ndarray | None = None
     envelope_definition: EnvelopeDefinition | None = None
+    allowable_pa_rad: float | None = None
 
     def envelope(self, mach):
         """Qα envelope [Pa·rad] at Mach ``mach`` (linear in Mach, end values held)."""
@@ -252,6 +258,17 @@ class RequirementReport:
     def passed(self) -> bool:
         """True if every requirement is met (informational lines do not count)."""
         return all(r.passed for r in self.results if r.gating)
+
+    @property
+    def passed_with_allowable(self) -> bool | None:
+        """The verdict with the constant Qα allowable (docs/REQUIREMENTS.md §6) as the load
+        requirement in place of the Qα envelope, every other requirement as in
+        :attr:`passed`; None when the file has no allowable."""
+        line = next((r for r in self.informational if r.key == "q_alpha_allowable"), None)
+        if line is None:
+            return None
+        return line.passed and all(r.passed for r in self.results
+                                   if r.gating and r.key != "q_alpha")
 
     def __getitem__(self, key: str) -> RequirementResult:
         for r in self.results:
@@ -387,6 +404,17 @@ def _parse(path: str, tree: Mapping) -> RequirementSpec:
         sources["q_alpha_objective"] = source.strip()
         for arr in (objective_mach, objective):
             arr.setflags(write=False)
+    allowable = None
+    if "q_alpha_allowable" in tree:
+        node = tree["q_alpha_allowable"]
+        allowable = _leaf(path, "q_alpha_allowable", node, "Pa*rad", ("value", "unit", "source"))
+        if not allowable > 0.0:
+            raise BadFile(f"{path}: field 'q_alpha_allowable.value': must be > 0")
+        source = node.get("source")
+        if not isinstance(source, str) or not source.strip():
+            raise BadFile(f"{path}: field 'q_alpha_allowable.source': "
+                          f"must be a non-empty string")
+        sources["q_alpha_allowable"] = source.strip()
     thesis_node = tree["thesis_table_5_1"]
     if not isinstance(thesis_node, Mapping):
         raise BadFile(f"{path}: field 'thesis_table_5_1': must be a mapping")
@@ -408,10 +436,10 @@ def _parse(path: str, tree: Mapping) -> RequirementSpec:
         deflection_integral_rad_s=values["deflection_integral"],
         thesis=thesis, sources=sources, provenance=dict(provenance),
         objective_mach=objective_mach, objective_pa_rad=objective,
-        envelope_definition=definition)
+        envelope_definition=definition, allowable_pa_rad=allowable)
 
 
-_OPTIONAL_TOP = ("q_alpha_objective",)
+_OPTIONAL_TOP = ("q_alpha_objective", "q_alpha_allowable")
 
 
 def _mach_table(path: str, key: str, node: Mapping, values: np.ndarray) -> np.ndarray:
@@ -682,6 +710,9 @@ def evaluate_requirements(t_s, q_alpha_pa_rad, mach, z_m, z_dot_mps, beta_t_s, b
     informational = []
     if spec.objective_mach is not None:
         row("q_alpha_objective", qa, spec.objective(m), t, lambda mg: mg >= 0.0,
+            out=informational)
+    if spec.allowable_pa_rad is not None:
+        row("q_alpha_allowable", qa, spec.allowable_pa_rad, t, lambda mg: mg >= 0.0,
             out=informational)
     flip = (q_alpha_flip(t, qa, m, spec=spec) if spec.envelope_definition is not None
             else None)
