@@ -317,6 +317,11 @@ def flight_metrics(result) -> dict[str, Any]:
     return row
 
 
+def _row(index: int, scenario, values: Mapping[str, Any], result) -> dict[str, Any]:
+    """The results row of sample ``index`` (its scenario, dispersed values and flight)."""
+    return {"sample": int(index), "seed": int(scenario.seed), **values, **flight_metrics(result)}
+
+
 def fly_sample(scenario_yaml: str, table_path: str, dispersions_text: str, campaign_seed: int,
                index: int) -> dict[str, Any]:
     """Fly sample ``index`` in process and return its results row (picklable arguments, so
@@ -328,8 +333,7 @@ def fly_sample(scenario_yaml: str, table_path: str, dispersions_text: str, campa
     base = parse_scenario(scenario_yaml, "<campaign scenario>")
     disp = parse_dispersions(dispersions_text, "<campaign dispersions>")
     scenario, values = sample_scenario(base, disp, campaign_seed, index)
-    result = run_scenario(scenario, _table(table_path))
-    row = {"sample": int(index), "seed": int(scenario.seed), **values, **flight_metrics(result)}
+    row = _row(index, scenario, values, run_scenario(scenario, _table(table_path)))
     row["wall_s"] = time.perf_counter() - t0
     return row
 
@@ -337,21 +341,41 @@ def fly_sample(scenario_yaml: str, table_path: str, dispersions_text: str, campa
 def fly_batch_samples(scenario_yaml: str, table_path: str, dispersions_text: str,
                       campaign_seed: int, indices) -> list[dict[str, Any]]:
     """Fly the samples ``indices`` as one batch (:func:`vega_sim.batch.fly_batch`) and return
-    their results rows: for each sample the row :func:`fly_sample` returns, the same numbers
-    (the batched engine equals the per-flight path bit for bit, tests/sim/test_batch.py),
-    except ``wall_s``, which is the batch's wall time divided equally among its samples.
+    their results rows, in the order of ``indices``: for each sample the row
+    :func:`fly_sample` returns, the same numbers (the batched engine equals the per-flight
+    path bit for bit, tests/sim/test_batch.py), except ``wall_s``, which is the batch's wall
+    time divided equally among its samples.
+
+    Samples the batched engine does not fly (:func:`vega_sim.batch.batch_refusal`: a linear
+    plant, the thesis' constant-driven Dryden wind, or anything not shared with the first
+    batchable sample) are flown one by one through
+    :func:`vega_sim.closed_loop.run_scenario`, as :func:`fly_sample` flies them. Only the
+    rows leave the task: the flights' records are dropped once their metrics are formed.
     Picklable arguments, so that a Dask worker can run a batch as one task."""
-    from vega_sim.batch import fly_batch
+    from vega_model.parameters import default_context
+    from vega_sim.batch import batch_refusal, fly_batch
+    from vega_sim.closed_loop import run_scenario
     from vega_sim.scenario import parse_scenario
 
     t0 = time.perf_counter()
     base = parse_scenario(scenario_yaml, "<campaign scenario>")
     disp = parse_dispersions(dispersions_text, "<campaign dispersions>")
+    table = _table(table_path)
+    context = default_context()
     indices = [int(i) for i in indices]
     drawn = [sample_scenario(base, disp, campaign_seed, i) for i in indices]
-    results = fly_batch([scenario for scenario, _ in drawn], _table(table_path))
-    rows = [{"sample": i, "seed": int(scenario.seed), **values, **flight_metrics(result)}
-            for i, (scenario, values), result in zip(indices, drawn, results)]
+    lead = next((s for s, _ in drawn if batch_refusal(s, s, context) is None), None)
+    together = [k for k, (s, _) in enumerate(drawn)
+                if lead is not None and batch_refusal(s, lead, context) is None]
+    rows: list[dict[str, Any] | None] = [None] * len(indices)
+    if together:
+        results = fly_batch([drawn[k][0] for k in together], table, context=context)
+        for k, result in zip(together, results):
+            rows[k] = _row(indices[k], *drawn[k], result)
+        del results, result            # the batch's records (≈ 9 MB per 100-s flight)
+    for k, row in enumerate(rows):
+        if row is None:
+            rows[k] = _row(indices[k], *drawn[k], run_scenario(drawn[k][0], table))
     wall = (time.perf_counter() - t0) / max(len(rows), 1)
     for row in rows:
         row["wall_s"] = wall

@@ -9,9 +9,16 @@ Layout of a campaign directory::
     DIR/results.parquet    every row, sorted by sample (rebuilt from samples/ at the end)
     DIR/summary.json, DIR/summary.md, DIR/*.png
 
-A killed campaign loses at most the samples in flight: ``--resume DIR`` reads campaign.json,
-skips the samples already in samples/ and flies the rest. The cluster: a Dask ``LocalCluster``
-of worker processes on 127.0.0.1 (no dashboard), or an existing scheduler by address.
+A flights campaign is flown in batches (:func:`~vega_campaign.campaign.fly_batch_samples`,
+the batched engine :func:`vega_sim.batch.fly_batch`), one Dask task each, or one flight per task
+(``batch=1``: :func:`~vega_campaign.campaign.fly_sample`); the rows are the same either way
+(the engine equals the per-flight path bit for bit), except their ``wall_s``. A batch's rows are
+written as soon as its task returns.
+
+A killed campaign loses at most the samples in flight (the batches running): ``--resume DIR``
+reads campaign.json, skips the samples already in samples/ and flies the rest, in new batches.
+The cluster: a Dask ``LocalCluster`` of worker processes on 127.0.0.1 (no dashboard), or an
+existing scheduler by address.
 
 Statistics: the pass fraction k/n and its one-sided Clopper–Pearson lower bounds at 90 % and
 95 % confidence (the exact binomial bound: p_lo = Beta⁻¹(1 − c; k, n − k + 1)); "99.73 %
@@ -35,16 +42,45 @@ import numpy as np
 
 from vega_core.errors import BadArgument
 
-from vega_campaign.campaign import (MARGIN_COLUMNS, METRICS, STATUS_COLUMNS, fly_sample,
-                                        margins_sample)
+from vega_campaign.campaign import (MARGIN_COLUMNS, METRICS, STATUS_COLUMNS,
+                                    fly_batch_samples, fly_sample, margins_sample)
 
 __all__ = ["clopper_pearson_lower", "runs_needed", "run_campaign", "summarise",
            "summarise_margins", "margins_markdown", "MARGIN_COLUMNS",
-           "write_results", "read_rows", "PERCENTILES"]
+           "write_results", "read_rows", "PERCENTILES", "DEFAULT_BATCH", "batches"]
 
 PERCENTILES = (50.0, 95.0, 99.0, 99.73, 100.0)
 CAMPAIGN_FILE = "campaign.json"
 SAMPLES_DIR = "samples"
+
+DEFAULT_BATCH = 64
+"""Most samples in one batched task of a flights campaign. The batched engine's CPU per flight
+falls as the controller's per-step array work is shared by more samples and flattens from
+about 64 on (docs/MONTE_CARLO.md §8); a batch holds ≈ 9 MB of records per 100-s sample while
+it flies (≈ 0.6 GB per worker at 64), and a killed campaign loses at most one batch per
+worker."""
+
+
+def batches(todo: Sequence[int], size: int, workers: int) -> list[list[int]]:
+    """The samples ``todo`` cut into consecutive batches of at most ``size``.
+
+    The number of batches is the fewest that respects ``size``, rounded up to a multiple of
+    ``workers`` (at most one batch per sample), and their sizes differ by at most one: the
+    workers get equal shares and finish together instead of one flying the last, larger
+    batch alone (852 flights, 64, 2 workers: 14 batches of 60–61)."""
+    n = len(todo)
+    if n == 0:
+        return []
+    workers = max(int(workers), 1)
+    count = -(-n // max(int(size), 1))
+    count = min(-(-count // workers) * workers, n)
+    small, extra = divmod(n, count)
+    out, start = [], 0
+    for k in range(count):
+        stop = start + small + (k < extra)
+        out.append([int(i) for i in todo[start:stop]])
+        start = stop
+    return out
 
 
 def clopper_pearson_lower(k: int, n: int, confidence: float) -> float:
@@ -111,12 +147,15 @@ def _cluster(workers: int | None, scheduler: str | None):
 def run_campaign(scenario, dispersions, *, runs: int, seed: int, out: Path, table_path: Path,
                  workers: int | None = None, scheduler: str | None = None, resume: bool = False,
                  progress: Callable[[str], None] = print, kind: str = "flights",
-                 times_s=None) -> list[dict]:
+                 times_s=None, batch: int = DEFAULT_BATCH) -> list[dict]:
     """Fly the campaign's missing samples on Dask; return every row (finished before or now).
 
-    ``kind``: ``"flights"`` (:func:`~vega_campaign.campaign.fly_sample`) or ``"margins"``
+    ``kind``: ``"flights"`` (:func:`~vega_campaign.campaign.fly_batch_samples` on
+    :func:`batches` of at most ``batch`` samples, or :func:`~vega_campaign.campaign.fly_sample`
+    per sample when ``batch`` is 1) or ``"margins"``
     (:func:`~vega_campaign.campaign.margins_sample` at ``times_s``; the scenario only
-    names the campaign).
+    names the campaign). ``progress`` gets a line per finished batch (per twentieth of the
+    samples when they are flown one per task).
 
     Raises
     ------
@@ -157,23 +196,35 @@ def run_campaign(scenario, dispersions, *, runs: int, seed: int, out: Path, tabl
         n_workers = len(client.scheduler_info().get("workers", {}))
         progress(f"mc: Dask {'scheduler ' + scheduler if scheduler else 'LocalCluster'}, "
                  f"{n_workers} workers")
+        args = (inputs["scenario_yaml"], inputs["table"], inputs["dispersions_yaml"],
+                inputs["seed"])
         if inputs.get("kind", "flights") == "margins":
             futures = [client.submit(margins_sample, inputs["table"], inputs["dispersions_yaml"],
                                      inputs["seed"], i, inputs["times_s"], pure=False,
                                      key=f"sample-{i}") for i in todo]
+        elif batch > 1:
+            groups = batches(todo, batch, n_workers)
+            progress(f"mc: batched engine, {len(groups)} task(s) of up to "
+                     f"{max(map(len, groups))} flights")
+            futures = [client.submit(fly_batch_samples, *args, group, pure=False,
+                                     key=f"batch-{group[0]}-{len(group)}") for group in groups]
         else:
-            futures = [client.submit(fly_sample, inputs["scenario_yaml"], inputs["table"],
-                                     inputs["dispersions_yaml"], inputs["seed"], i, pure=False,
-                                     key=f"sample-{i}") for i in todo]
-        for k, fut in enumerate(as_completed(futures), start=1):
+            futures = [client.submit(fly_sample, *args, i, pure=False, key=f"sample-{i}")
+                       for i in todo]
+        k = 0
+        for fut in as_completed(futures):
             try:
-                row = fut.result()
+                got = fut.result()
             except Exception as exc:  # a flight that raises is a defect, never bad input
-                raise RuntimeError(f"sample {fut.key}: {type(exc).__name__}: {exc}") from exc
-            _write_json(out / SAMPLES_DIR / f"{row['sample']:06d}.json", row)
-            failures += row["verdict"] != "pass"
+                raise RuntimeError(f"{fut.key}: {type(exc).__name__}: {exc}") from exc
             fut.release()
-            if k == len(todo) or k % max(1, len(todo) // 20) == 0:
+            rows = got if isinstance(got, list) else [got]
+            for row in rows:
+                _write_json(out / SAMPLES_DIR / f"{row['sample']:06d}.json", row)
+                failures += row["verdict"] != "pass"
+            before, k = k, k + len(rows)
+            step = max(1, len(todo) // 20)
+            if k == len(todo) or isinstance(got, list) or k // step > before // step:
                 elapsed = time.monotonic() - t0
                 eta = elapsed / k * (len(todo) - k)
                 progress(f"mc: {k}/{len(todo)} done, {failures} failed so far, "

@@ -11,7 +11,7 @@ from scipy.stats import binomtest
 
 from vega_campaign.campaign import (fly_sample, load_dispersions, parse_dispersions,
                                         sample_scenario)
-from vega_campaign.campaign_run import clopper_pearson_lower, runs_needed
+from vega_campaign.campaign_run import batches, clopper_pearson_lower, runs_needed
 from vega_core.errors import BadFile
 from vega_model.uncertainty import UNCERTAINTY_NAMES, UncertaintySet
 from vega_model.vehicle_data import load_vehicle_data
@@ -137,3 +137,46 @@ def test_fly_sample_is_the_in_process_flight_of_that_scenario():
     assert all(row[k] == v for k, v in values.items() if not (isinstance(v, float) and
                                                                  math.isnan(v)))
     assert row["q_alpha_profile_pa_deg"] is not None
+
+
+@pytest.mark.parametrize("n, size, workers, sizes", [
+    (852, 64, 2, [61] * 12 + [60] * 2),       # 14 batches: 7 per worker
+    (130, 64, 2, [33, 33, 32, 32]),           # 3 needed, rounded up to 4 for two workers
+    (6, 64, 1, [6]),
+    (6, 64, 2, [3, 3]),
+    (3, 64, 8, [1, 1, 1]),                    # never an empty batch
+    (5, 1, 2, [1] * 5),
+    (10, 4, 1, [4, 3, 3]),
+])
+def test_batches_cover_the_samples_in_order_in_equal_shares(n, size, workers, sizes):
+    todo = [i * 3 + 1 for i in range(n)]          # the missing samples of a resumed campaign
+    got = batches(todo, size, workers)
+    assert [len(b) for b in got] == sizes
+    assert [i for b in got for i in b] == todo
+    assert batches([], size, workers) == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("change", ["linear_plant", "thesis_dryden"])
+def test_samples_the_batched_engine_refuses_are_flown_per_flight(change):
+    """A campaign of a scenario fly_batch does not fly (a linear plant; the thesis' constant
+    Dryden input on the nonlinear plant): fly_batch_samples flies each sample through
+    run_scenario and returns fly_sample's rows (wall time apart)."""
+    from vega_campaign.campaign import fly_batch_samples
+    from vega_gnc.controller_table import default_table_path
+    from vega_sim.batch import batch_refusal
+
+    short = dataclasses.replace(BASE, t_start_s=40.0, t_end_s=41.0)
+    if change == "linear_plant":
+        short = dataclasses.replace(short, plant="linear")
+    else:
+        short = dataclasses.replace(short, wind=dataclasses.replace(
+            short.wind, thesis_constant_dryden=True))
+    assert batch_refusal(short, short) is not None
+    text, table = dump_scenario(short), str(default_table_path())
+    rows = fly_batch_samples(text, table, GOOD, 3, [5, 2])
+    assert [r["sample"] for r in rows] == [5, 2]
+    for row in rows:
+        want = fly_sample(text, table, GOOD, 3, row["sample"])
+        assert row.pop("wall_s") > 0.0 and want.pop("wall_s") > 0.0
+        assert repr(row) == repr(want)

@@ -1,8 +1,13 @@
 """Campaigns on real Dask clusters (every server on 127.0.0.1): a LocalCluster of worker
 processes, a `dask scheduler` with two `dask worker` processes, a campaign killed with SIGKILL
-and resumed, and bad input refused before anything starts."""
+and resumed, and bad input refused before anything starts. Campaigns fly in batches (the
+batched engine) by default; ``--batch 1`` flies one sample per task (the per-flight path), and
+both give the same rows."""
 
+import contextlib
+import io
 import json
+import shutil
 import os
 import signal
 import subprocess
@@ -52,13 +57,65 @@ def scenario(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def reference(tmp_path_factory, scenario):
-    """The campaign flown on a LocalCluster of ONE worker."""
+def reference_run(tmp_path_factory, scenario):
+    """The campaign flown on a LocalCluster of ONE worker with the default batch (all six
+    samples in one batched task), and what it printed."""
     out = tmp_path_factory.mktemp("mc") / "one"
-    code = cli.main(["mc", "run", "--scenario", str(scenario), "--runs", str(RUNS), "--seed", "4",
-                     "--workers", "1", "--out", str(out)])
+    text = io.StringIO()
+    with contextlib.redirect_stdout(text):
+        code = cli.main(["mc", "run", "--scenario", str(scenario), "--runs", str(RUNS),
+                         "--seed", "4", "--workers", "1", "--out", str(out)])
     assert code in (0, 1)
-    return out
+    return out, text.getvalue()
+
+
+@pytest.fixture(scope="module")
+def reference(reference_run):
+    return reference_run[0]
+
+
+@pytest.mark.slow
+def test_default_campaign_flies_one_batch_per_worker_and_prints_per_batch(reference_run):
+    out, text = reference_run
+    assert f"mc: batched engine, 1 task(s) of up to {RUNS} flights" in text
+    assert f"mc: {RUNS}/{RUNS} done, " in text and "mc: 1/" not in text
+    walls = {json.loads(p.read_text())["wall_s"] for p in (out / "samples").glob("*.json")}
+    assert len(walls) == 1          # the batch's wall time shared equally by its samples
+
+
+@pytest.mark.slow
+def test_per_flight_path_gives_the_same_rows(reference, scenario, tmp_path, capsys):
+    """``--batch 1`` (one fly_sample task per sample, on two workers) and the default
+    batched campaign: the same results.parquet rows, wall times apart."""
+    out = tmp_path / "per_flight"
+    code = cli.main(["mc", "run", "--scenario", str(scenario), "--runs", str(RUNS), "--seed", "4",
+                     "--workers", "2", "--batch", "1", "--out", str(out)])
+    text = capsys.readouterr().out
+    assert code in (0, 1) and "batched engine" not in text
+    assert [f"mc: {k}/{RUNS} done" in text for k in range(1, RUNS + 1)] == [True] * RUNS
+    assert _rows(out) == _rows(reference)
+
+
+@pytest.mark.slow
+def test_resume_flies_only_the_missing_samples_of_a_batch(reference, tmp_path, capsys):
+    """A campaign that lost two rows of its batch (as a kill between the row writes would):
+    ``--resume`` flies those two as a new batch, leaves the other rows untouched, and the
+    table equals the campaign flown in one go."""
+    out = tmp_path / "partial"
+    shutil.copytree(reference, out)
+    for name in ("results.parquet", "summary.json"):
+        (out / name).unlink()
+    samples = out / "samples"
+    for i in (1, 4):
+        (samples / f"{i:06d}.json").unlink()
+    kept = {p.name: p.stat().st_mtime_ns for p in samples.glob("*.json")}
+    code = cli.main(["mc", "run", "--resume", str(out), "--workers", "1"])
+    text = capsys.readouterr().out
+    assert code in (0, 1)
+    assert f"{RUNS - 2} already flown, 2 to fly" in text
+    assert "mc: batched engine, 1 task(s) of up to 2 flights" in text
+    assert {n: (samples / n).stat().st_mtime_ns for n in kept} == kept
+    assert _rows(out) == _rows(reference)
 
 
 @pytest.mark.slow
@@ -68,6 +125,7 @@ def test_same_samples_whatever_the_worker_count(reference, scenario, tmp_path, c
                      "--workers", "2", "--out", str(out)])
     text = capsys.readouterr().out
     assert code in (0, 1) and "Dask LocalCluster, 2 workers" in text
+    assert "batched engine, 2 task(s) of up to 3 flights" in text     # other batches
     assert _rows(out) == _rows(reference)
     rows = json.loads(_rows(out))
     assert [r["sample"] for r in rows] == list(range(RUNS))
@@ -121,21 +179,27 @@ def _without_wall(row):
     return {k: v for k, v in row.items() if k != "wall_s"}
 
 
+KILLED_RUNS = 12
+
+
 @pytest.mark.slow
 def test_killed_campaign_resumes_without_reflying(long_scenario, tmp_path):
     """SIGKILL at an event — the first sample file written — then ``--resume``: the kept
     samples are not flown again, the others are, and the resumed rows are the flights
-    themselves (flown again here in process, without the campaign machinery).
+    themselves (flown again here in process by fly_sample, the per-flight path, without the
+    campaign machinery).
 
-    The flights are 60 s long so that the kill surely comes between the first sample written
-    and the last: the other five take ≈ 5 s of the worker's computing after the first. (With
-    1 s flights a loaded machine can write all six in one burst before the kill comes.)"""
+    The campaign flies in batches of two (six tasks on one worker; a batch's rows are written
+    when it returns) and the flights are 60 s long, so that the kill surely comes between the
+    first sample written and the last: the other five batches take seconds of the worker's
+    computing after the first. (With 1 s flights a loaded machine can write every row in one
+    burst before the kill comes.)"""
     from vega_campaign.campaign import fly_sample
     from vega_campaign.campaign_run import SAMPLES_DIR
 
     out = tmp_path / "killed"
-    proc = subprocess.Popen(_mc("--scenario", long_scenario, "--runs", RUNS, "--seed", 4,
-                                "--workers", "1", "--out", out),
+    proc = subprocess.Popen(_mc("--scenario", long_scenario, "--runs", KILLED_RUNS, "--seed", 4,
+                                "--workers", "1", "--batch", 2, "--out", out),
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             start_new_session=True)
     samples = out / SAMPLES_DIR
@@ -147,16 +211,17 @@ def test_killed_campaign_resumes_without_reflying(long_scenario, tmp_path):
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait(timeout=30)
     kept = sorted(p.name for p in samples.glob("*.json"))
-    assert 1 <= len(kept) < RUNS, kept
+    assert 1 <= len(kept) < KILLED_RUNS, kept
     mtimes = {p.name: p.stat().st_mtime_ns for p in samples.glob("*.json")}
     result = subprocess.run(_mc("--resume", out), capture_output=True, text=True, timeout=300)
     assert result.returncode in (0, 1), result.stderr
-    assert f"{len(kept)} already flown, {RUNS - len(kept)} to fly" in result.stdout
+    assert f"{len(kept)} already flown, {KILLED_RUNS - len(kept)} to fly" in result.stdout
+    assert "batched engine" in result.stdout
     assert all((samples / n).stat().st_mtime_ns == t for n, t in mtimes.items())
     rows = pq.read_table(out / "results.parquet").to_pylist()
-    assert [r["sample"] for r in rows] == list(range(RUNS))
+    assert [r["sample"] for r in rows] == list(range(KILLED_RUNS))
     inputs = json.loads((out / "campaign.json").read_text())
-    resumed = [i for i in range(RUNS) if f"{i:06d}.json" not in kept]
+    resumed = [i for i in range(KILLED_RUNS) if f"{i:06d}.json" not in kept]
     for i in (resumed[0], resumed[-1]):
         again = fly_sample(inputs["scenario_yaml"], inputs["table"], inputs["dispersions_yaml"],
                            inputs["seed"], i)
@@ -173,6 +238,8 @@ def test_killed_campaign_resumes_without_reflying(long_scenario, tmp_path):
      "--workers and --scheduler exclude each other"),
     (["--runs", "3", "--table", "/nonexistent.npz"], "/nonexistent.npz: no such file"),
     (["--runs", "3", "--seed", "-4"], "--seed must be an integer >= 0"),
+    (["--runs", "3", "--batch", "0"], "argument --batch: must be >= 1"),
+    (["--runs", "3", "--batch", "513"], "argument --batch: must be <= 512"),
 ])
 def test_bad_input_one_line_exit_2_nothing_started(tmp_path, capsys, args, message):
     out = tmp_path / "c"
@@ -187,9 +254,13 @@ def test_bad_input_one_line_exit_2_nothing_started(tmp_path, capsys, args, messa
 
 
 @pytest.mark.slow
-def test_rerun_of_a_sample_through_the_ros_nodes_gives_its_row(reference, tmp_path, capsys):
+def test_rerun_of_a_sample_through_the_ros_nodes_gives_its_row(reference_run, tmp_path,
+                                                                capsys):
     """`vega mc rerun`: sample 1 of the campaign flown by the five SIL processes; the metrics
-    computed from its bag equal the campaign row (the same code on bit-identical data)."""
+    computed from its bag equal the campaign row (the same code on bit-identical data). The
+    campaign was flown by the batched engine (one task for its six samples)."""
+    reference, text = reference_run
+    assert "batched engine" in text
     code = cli.main(["mc", "rerun", str(reference), "--sample", "1", "--out", str(tmp_path)])
     out = capsys.readouterr().out
     assert code == 0, out

@@ -257,3 +257,24 @@ def test_campaign_batch_task_rows_equal_fly_sample():
         expected = fly_sample(text, table_path, disp, 5, row["sample"])
         assert row.pop("wall_s") > 0.0 and expected.pop("wall_s") > 0.0
         assert _same_row(row, expected), row["sample"]
+
+
+def test_tracks_of_one_span_share_the_flight_condition_interpolation():
+    """The batch's samples build their parameter tracks on one context: the flight-condition
+    interpolation of a span is done once and reused (read-only), and every track's columns
+    equal, bit for bit, those a fresh context computes — after another span in between and
+    with other deviations."""
+    from vega_model.parameters import ModelContext, default_context
+
+    shared, dev = default_context(), {"velocity": 0.02, "x_cp": -0.1, "mass": 0.03}
+    span = (40_000 + 10 * np.arange(1201)) / 1000.0
+    other = (10_000 + 10 * np.arange(301)) / 1000.0
+    first = shared.parameter_columns_at_times(span)
+    again = shared.parameter_columns_at_times(span.copy())
+    assert again["h_m"] is first["h_m"] and not first["h_m"].flags.writeable
+    for times, deviations in ((span, dev), (other, {}), (span, {}), (span, dev)):
+        got = shared.parameter_columns_at_times(times, deviations)
+        want = ModelContext().parameter_columns_at_times(times, deviations)
+        assert got.keys() == want.keys()
+        assert [k for k in got if got[k].tobytes() != want[k].tobytes()] == []
+    assert shared.parameter_columns_at_times(other)["h_m"] is not first["h_m"]

@@ -12,11 +12,13 @@ and won, McNemar's exact p; exit 0 after the report, 2 for campaigns that are no
 not fly the same samples.
 
 ``vega mc run --scenario NAME|PATH --runs N [--dispersions FILE] [--seed S] [--out DIR]
-[--table FILE] [--workers K | --scheduler ADDRESS] [--resume DIR]`` flies N dispersed copies of
-the scenario in process on a Dask cluster (a LocalCluster of K worker processes on 127.0.0.1 by
-default), writes every finished sample as it comes, then ``results.parquet``, ``summary.json``,
-``summary.md`` and plots. Exit status: 0 if every flight passed, 1 if one failed, 2 on bad
-input (checked before anything starts).
+[--table FILE] [--workers K | --scheduler ADDRESS] [--batch B] [--resume DIR]`` flies N dispersed
+copies of the scenario in process on a Dask cluster (a LocalCluster of K worker processes on
+127.0.0.1 by default), in batches of up to B samples per task (the batched engine; ``--batch 1``:
+one flight per task, the per-flight path; the same rows either way), writes every finished
+sample as it comes, then ``results.parquet``, ``summary.json``, ``summary.md`` and plots. Exit
+status: 0 if every flight passed, 1 if one failed, 2 on bad input (checked before anything
+starts).
 """
 
 from __future__ import annotations
@@ -37,6 +39,11 @@ dispersed 100 s flight costs about 0.5 CPU s (docs/MONTE_CARLO.md §8, 203-209x 
 CPU second), so 10^6 flights are about 6 CPU-days; the campaign lists every sample index in
 memory before it starts, and a larger N (a typo such as 10^12) would exhaust the memory before
 the first flight instead of being refused."""
+
+MAX_BATCH = 512
+"""Largest ``--batch`` [samples per task]. A batch holds ≈ 9 MB of records per 100-s sample
+while it flies (vega_sim.batch), so 512 is ≈ 4.6 GB per worker process; the CPU per flight no
+longer falls beyond ≈ 64-128 (docs/MONTE_CARLO.md §8)."""
 
 MAX_WORKERS = 64
 """Largest ``--workers`` of the LocalCluster (worker processes on this host), the bound
@@ -159,12 +166,12 @@ def _campaign(args: argparse.Namespace, kind: str) -> dict:
 
 def _fly(args: argparse.Namespace, c: dict, kind: str) -> tuple[list[dict], dict]:
     """Run (or finish) the campaign ``c`` on Dask; its rows and its campaign.json inputs."""
-    from vega_campaign.campaign_run import run_campaign, write_results
+    from vega_campaign.campaign_run import DEFAULT_BATCH, run_campaign, write_results
 
     rows = run_campaign(c["scenario"], c["disp"], runs=c["runs"], seed=c["seed"], out=c["out"],
                         table_path=c["table_path"].resolve(), workers=args.workers,
                         scheduler=args.scheduler, resume=bool(args.resume), kind=kind,
-                        times_s=c["times"])
+                        times_s=c["times"], batch=getattr(args, "batch", DEFAULT_BATCH))
     write_results(c["out"], rows)
     return rows, json.loads((c["out"] / "campaign.json").read_text())
 
@@ -311,6 +318,13 @@ def _campaign_arguments(parser, what: str, default_out: str) -> None:
                              "ignored)")
 
 
+def _default_batch() -> int:
+    """The default ``--batch`` (the campaign runner's)."""
+    from vega_campaign.campaign_run import DEFAULT_BATCH
+
+    return DEFAULT_BATCH
+
+
 def register(subparsers) -> None:
     """Add the ``mc`` sub-command (actions ``run``, ``margins``, ``rerun``, ``compare``)."""
     parser = subparsers.add_parser(
@@ -326,6 +340,12 @@ def register(subparsers) -> None:
     run.add_argument("--scenario", default="nominal", metavar="NAME|PATH",
                      help="shipped scenario name or YAML file (default: nominal)")
     _campaign_arguments(run, "flights", "<scenario>-seed<S>-n<N>")
+    run.add_argument("--batch", type=_positive_int(MAX_BATCH), default=_default_batch(),
+                     metavar="B",
+                     help=f"most samples flown at once per Dask task by the batched engine "
+                          f"(1..{MAX_BATCH}; default %(default)s; 1: one flight per task, the "
+                          f"per-flight path; the rows are the same either way, also when "
+                          f"resuming)")
     run.set_defaults(func=_run)
     margins = actions.add_parser(
         "margins", help="margins of the flown controller over dispersed plants",

@@ -25,7 +25,10 @@ from vega_sim.plant_step import PlantStep, PlantWind, parameter_track
 from vega_model.wind import GustProfile, ProfileChange
 
 __all__ = ["derive_seeds", "loop_timing", "make_plant", "initial_plant_state", "make_ins",
-           "make_actuator"]
+           "make_actuator", "FROM_SCENARIO"]
+
+FROM_SCENARIO = object()
+"""Default of the ``reference`` arguments: load the guidance reference the scenario names."""
 
 
 def derive_seeds(seed: int) -> tuple[int, int]:
@@ -47,7 +50,8 @@ def loop_timing(scenario: Scenario, context: ModelContext | None = None) -> Loop
 
 def make_plant(scenario: Scenario, *, seed: int | None = None,
                context: ModelContext | None = None,
-               parameter_refresh_ms: int | None = None) -> PlantStep:
+               parameter_refresh_ms: int | None = None,
+               reference=FROM_SCENARIO) -> PlantStep:
     """The plant node of a scenario (with its wind), at t_start.
 
     Parameters
@@ -60,6 +64,8 @@ def make_plant(scenario: Scenario, *, seed: int | None = None,
         Model data sources (default: the shipped vehicle data and flight conditions).
     parameter_refresh_ms
         Model-parameter refresh interval (a divisor of the 10 ms frame; default: the frame).
+    reference
+        As :func:`initial_plant_state`.
     """
     context = context if context is not None else default_context()
     timing = loop_timing(scenario, context)
@@ -75,12 +81,13 @@ def make_plant(scenario: Scenario, *, seed: int | None = None,
                      thesis_constant_dryden=w.thesis_constant_dryden,
                      dt_ms=timing.physics_dt_ms,
                      change=ProfileChange(w.profile_scale, w.profile_shift_m))
-    return PlantStep(track, wind, scenario.plant, initial_plant_state(scenario, context),
+    return PlantStep(track, wind, scenario.plant,
+                     initial_plant_state(scenario, context, reference=reference),
                      scenario.initial_state.beta_rad)
 
 
-def initial_plant_state(scenario: Scenario, context: ModelContext | None = None
-                        ) -> tuple[float, ...]:
+def initial_plant_state(scenario: Scenario, context: ModelContext | None = None, *,
+                        reference=FROM_SCENARIO) -> tuple[float, ...]:
     """The plant state at t_start: the scenario's ``initial_state`` taken as deviations from
     the flight its guidance reference describes (docs/GUIDANCE.md §5), so that a scenario cut
     to start mid-flight starts on the reference; with ``guidance: none`` (or a reference that
@@ -88,11 +95,17 @@ def initial_plant_state(scenario: Scenario, context: ModelContext | None = None
 
     The reference holds what the INS measures on the reference flight; the rigid states are
     recovered by the INS kinematics of thesis Eqs. 2.33-2.36 with the bending coordinates 0:
-    θ = θ_INS, θ̇ = θ̇_INS, z = z_INS + l·θ, ż = ż_INS + l·θ̇, l = x_INS − x_CG at t_start."""
+    θ = θ_INS, θ̇ = θ̇_INS, z = z_INS + l·θ, ż = ż_INS + l·θ̇, l = x_INS − x_CG at t_start.
+
+    ``reference``: the loaded reference the scenario's ``guidance`` names (a
+    :class:`vega_gnc.guidance_reference.GuidanceReference`, or None for ``none``), passed by
+    a caller that already holds it — the batched engine loads the file once for all its
+    samples; by default the file is loaded here."""
     from vega_gnc.guidance_reference import resolve_reference
 
     x0 = list(scenario.initial_state.plant_state())
-    reference = resolve_reference(scenario.guidance)
+    if reference is FROM_SCENARIO:
+        reference = resolve_reference(scenario.guidance)
     if reference is None:
         return tuple(x0)
     context = context if context is not None else default_context()

@@ -47,11 +47,11 @@ from vega_gnc.controller_table import ControllerTable, load_controller_table
 from vega_model.actuator import ActuatorParams, TvcActuator
 from vega_model.ins import InsParams
 from vega_model.parameters import ModelContext, default_context
-from vega_sim.assembly import derive_seeds, loop_timing, make_plant
+from vega_sim.assembly import FROM_SCENARIO, derive_seeds, loop_timing, make_plant
 from vega_sim.closed_loop import SimulationResult, scenario_reference
 from vega_sim.scenario import Scenario
 
-__all__ = ["fly_batch"]
+__all__ = ["fly_batch", "batch_refusal"]
 
 # Samples' worth of INS noise InsSensor draws from its generator at a time (vega_model.ins).
 _INS_BLOCK = 256
@@ -76,10 +76,11 @@ class _Sample:
 
 
 def _sample_inputs(scenario: Scenario, seed: int, context: ModelContext,
-                   n_frames: int) -> _Sample:
+                   n_frames: int, reference=FROM_SCENARIO) -> _Sample:
     """One sample's inputs (flight seed ``seed``), from the factories the per-flight run
-    uses."""
-    plant = make_plant(scenario, seed=seed, context=context)
+    uses; ``reference``: the scenario's guidance reference, loaded once for the batch (as
+    :func:`vega_sim.assembly.initial_plant_state`)."""
+    plant = make_plant(scenario, seed=seed, context=context, reference=reference)
     track = plant.track
     consts, tables = track.kernel_inputs()
     views = track.view_array()
@@ -108,25 +109,31 @@ def _sample_inputs(scenario: Scenario, seed: int, context: ModelContext,
                     timing.actuator_latency_ms))
 
 
+def batch_refusal(scenario: Scenario, first: Scenario,
+                  context: ModelContext | None = None) -> str | None:
+    """Why :func:`fly_batch` would not fly ``scenario`` in a batch led by ``first`` (None:
+    it would). ``batch_refusal(s, s)`` says whether ``s`` can be batched at all; a campaign
+    flies the samples refused here through :func:`vega_sim.closed_loop.run_scenario`."""
+    context = context if context is not None else default_context()
+    if scenario.plant != "nonlinear":
+        return f"plant {scenario.plant!r} (the batch flies the nonlinear plant)"
+    if scenario.wind.thesis_constant_dryden:
+        return "thesis_constant_dryden wind"
+    if (scenario.t_start_ms, scenario.t_end_ms) != (first.t_start_ms, first.t_end_ms):
+        return "a span other than the first scenario's"
+    if scenario.guidance != first.guidance:
+        return "a guidance reference other than the first scenario's"
+    t, t0 = loop_timing(scenario, context), loop_timing(first, context)
+    if (t.physics_dt_ms, t.frame_ms, t.controller_period_ms) != (
+            t0.physics_dt_ms, t0.frame_ms, t0.controller_period_ms):
+        return "a loop timing other than the first scenario's"
+    return None
+
+
 def _check_batch(scenarios: Sequence[Scenario], context: ModelContext) -> None:
     """Refuse a batch that does not share what the engine shares (module docstring)."""
-    first = scenarios[0]
-    t0 = loop_timing(first, context)
     for s in scenarios:
-        why = None
-        if s.plant != "nonlinear":
-            why = f"plant {s.plant!r} (the batch flies the nonlinear plant)"
-        elif s.wind.thesis_constant_dryden:
-            why = "thesis_constant_dryden wind"
-        elif (s.t_start_ms, s.t_end_ms) != (first.t_start_ms, first.t_end_ms):
-            why = "a span other than the first scenario's"
-        elif s.guidance != first.guidance:
-            why = "a guidance reference other than the first scenario's"
-        else:
-            t = loop_timing(s, context)
-            if (t.physics_dt_ms, t.frame_ms, t.controller_period_ms) != (
-                    t0.physics_dt_ms, t0.frame_ms, t0.controller_period_ms):
-                why = "a loop timing other than the first scenario's"
+        why = batch_refusal(s, scenarios[0], context)
         if why is not None:
             raise BadInput(f"fly_batch: scenario {s.name!r} has {why}; fly it with "
                            "run_scenario")
@@ -198,11 +205,12 @@ def _fly(scenarios: list[Scenario], seeds: list[int], table: ControllerTable,
     n_frames = (first.t_end_ms - t0) // frame
     steps = frame // dt
     n = len(scenarios)
+    reference = scenario_reference(first)             # one guidance file for the batch
     # the per-sample inputs, each copied into the batch's arrays as soon as it is built (the
     # sample's own copy of the large ones is then dropped)
     samples, consts, views, wind, noise = [], None, None, None, None
     for i, (scenario, seed) in enumerate(zip(scenarios, seeds)):
-        s = _sample_inputs(scenario, seed, context, n_frames)
+        s = _sample_inputs(scenario, seed, context, n_frames, reference)
         if consts is None:
             consts = np.empty((n, *s.consts.shape))
             views = np.empty((n, *s.views.shape))
@@ -231,7 +239,7 @@ def _fly(scenarios: list[Scenario], seeds: list[int], table: ControllerTable,
     ins = np.empty((n, len(bk.INS_FIELDS), n_frames + 1))
     act_out = np.empty((n, len(bk.ACTUATOR_FIELDS), n_frames * steps + 1))
     work_b, work_r = np.empty(steps), np.empty(steps)
-    controller = ControllerBatch(n, table, limits, reference=scenario_reference(first))
+    controller = ControllerBatch(n, table, limits, reference=reference)
     bk.observe(0, t0, t0, refresh, dt, x, views, wind, noise, noise_on, sigma, sensor_lat,
                truth, ins)
     cmd_frames, cmd_u, cmd_v, cmd_status = [], [], [], []
