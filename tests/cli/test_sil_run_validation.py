@@ -107,3 +107,21 @@ def test_dev_zero_scenario_is_refused_at_once(tmp_path):
         2, "vega: error: /dev/zero: scenario file is over the 1 MiB (1048576 bytes) limit "
            "(more than 1048576 bytes read)\n"), done
     assert not (tmp_path / "runs").exists()
+
+
+def test_the_report_preload_is_waited_for_before_the_process_ends():
+    """``vega sil run`` starts the report's imports in a daemon thread when the flight begins;
+    every exit path (a report written, a run that failed or was interrupted) waits for it
+    (``finish``), because a daemon thread still importing C extensions while the interpreter
+    finalizes aborts the process instead of exiting with the run's status."""
+    import threading
+
+    from vega_cli.commands import sil
+
+    idle = sil._ReportPreload()
+    idle.finish()                                   # never started: returns at once
+    preload = sil._ReportPreload()
+    preload.start()
+    preload.finish()
+    assert not any(t.name == "report-preload" and t.is_alive() for t in threading.enumerate())
+    assert "matplotlib.pyplot" in sys.modules      # the imports ran to their end

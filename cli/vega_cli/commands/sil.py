@@ -147,6 +147,11 @@ def _run(args):
         on_flight=preload.start)
     outcome = supervisor.run()
     if not outcome.ok:
+        # the preload thread is waited for on this path too: a daemon thread still importing
+        # (matplotlib's C extensions) while the interpreter finalizes aborts the process
+        # (SIGABRT, "PyThreadState_Get: ... the GIL is released") instead of exiting with the
+        # run's status
+        preload.finish()
         _say(f"error: {outcome.message}")
         if (plan.layout.bag_dir / "metadata.yaml").is_file():
             _say(f"partial bag: {plan.layout.bag_dir}; node logs: {plan.layout.log_dir}")
