@@ -113,8 +113,13 @@ lint: setup
 	cd $(ROOT) && $(VENV)/bin/ruff check ros2_ws/src offline cli tests bench tools
 	cd $(ROOT) && $(VENV)/bin/vega-env lint-imports --no-logo --no-cache $(ROOT)/pyproject.toml
 
+# The whole suite on TEST_WORKERS pytest-xdist workers (default 2, one per core of the CI
+# machine; 0 = in this process), a test module per worker at a time (--dist loadfile: a module's
+# fixtures are built once). Two workers is the soak's own condition: two suites at once on two
+# cores (docs/TESTING.md).
+TEST_WORKERS ?= 2
 test: setup lint
-	cd $(ROOT) && $(VENV)/bin/vega-env python -m pytest tests $(PYTEST_ARGS)
+	cd $(ROOT) && $(VENV)/bin/vega-env python -m pytest tests -n $(TEST_WORKERS) --dist loadfile $(PYTEST_ARGS)
 
 # The fast tier for everyday work: every test not marked slow (docs/TESTING.md, "Test tiers").
 .PHONY: check
