@@ -1,6 +1,7 @@
 """Figures of ``vega margins``: margins over flight time, and a Nichols chart at max-Q.
 
-* ``margins_over_time.png`` — rigid-body gain margins (low and high), phase margin, bending
+* ``margins_over_time.png`` — rigid-body gain margins (low and high), phase margin (distance
+  from −180°; grey dots: the drift loop's crossovers below the frozen-time floor), bending
   peak loop gain per mode and closed-loop stability over the flight, nominal (lines) and, with
   the dispersed corners, the worst corner per time (dashed); the requirement lines of
   :data:`vega_loops.margins.REQUIREMENTS`; the times where the controller is clamped to
@@ -18,7 +19,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from vega_loops.margins import REQUIREMENTS
+from vega_loops.margins import PM_FLOOR_RADPS, REQUIREMENTS
 
 __all__ = ["plot_margins_over_time", "plot_nichols"]
 
@@ -58,13 +59,18 @@ def plot_margins_over_time(path, nominal: Sequence[Mapping], worst: Sequence[Map
     ax.set_ylabel("rigid-body gain margin [dB]")
     ax.set_ylim(-10, 40)
     ax = axes[1]
-    ax.plot(t, _col(nominal, "pm_deg"), "C2", label="PM (smallest |margin| crossover)")
+    ax.plot(t, _col(nominal, "pm_deg"), "C2",
+            label=f"PM (distance from −180°, gain crossovers ≥ {PM_FLOOR_RADPS:g} rad/s)")
     if worst:
         ax.plot(tw, _col(worst, "pm_deg"), "C2--", label="PM, worst corner")
+    below = _col(worst if worst else nominal, "pm_low_deg")
+    if np.any(np.isfinite(below)):
+        ax.plot(tw if worst else t, below, ".", color="0.5", ms=3,
+                label=f"crossovers below {PM_FLOOR_RADPS:g} rad/s (drift; not a criterion)"
+                      + (", worst corner" if worst else ""))
     ax.axhline(req["pm_deg"], color="r", lw=1, label=f"requirement {req['pm_deg']:g}°")
-    ax.axhline(0.0, color="k", lw=0.5)
     ax.set_ylabel("rigid-body phase margin [deg]")
-    ax.set_ylim(-40, 90)
+    ax.set_ylim(0, 90)
     ax = axes[2]
     for i, c in ((1, "C3"), (2, "C4")):
         y = _col(nominal, f"b{i}_peak_db")
@@ -126,10 +132,11 @@ def plot_nichols(path, w, curves: Mapping[int, np.ndarray], labels: Mapping[int,
         ax.plot(ph, db, color="k" if nominal else None, lw=1.6 if nominal else 0.8,
                 alpha=1.0 if nominal else 0.7, label=labels.get(index, str(index)))
         if nominal:
-            for wm in (0.1, 1.0, 3.0, 10.0, *omega_modes):
+            for wm in (0.1, PM_FLOOR_RADPS, 1.0, 3.0, 10.0, *omega_modes):
                 k = int(np.argmin(np.abs(w - wm)))
                 ax.plot(ph[k], db[k], "k.", ms=5)
-                ax.annotate(f"{w[k]:.3g} rad/s", (ph[k], db[k]), fontsize=7,
+                floor = " (PM floor)" if wm == PM_FLOOR_RADPS else ""
+                ax.annotate(f"{w[k]:.3g} rad/s{floor}", (ph[k], db[k]), fontsize=7,
                             xytext=(3, 3), textcoords="offset points")
     lo = max(lo, -900.0)
     hi = min(hi, 540.0)

@@ -39,17 +39,25 @@ What is analysed, per frozen flight time t (the loop broken at the actuator inpu
 Margins (:func:`extract_margins`, one implementation for both views and for the textbook
 tests): phase crossovers are where the unwrapped phase crosses −180° (mod 360°), gain
 crossovers where |L| = 1, both located by linear interpolation in log ω on a dense grid.
+Every margin is reported with the frequency of the crossover it belongs to (``w_*_radps``).
+The phase margin of a gain crossover is the *distance* of its phase from −180° (mod 360°,
+either side): |180° + ∠L| with 180° + ∠L wrapped to (−180°, 180°], never negative — a
+crossover at −196° is 16° from the critical point, as close as one at −164°. Which side it
+lies on is a matter of the Nyquist count, which the eigenvalues below decide.
 
 * rigid-body band: ω < 0.8 ω₁ (ω₁ of the plant analysed, dispersed or not);
   ``gm_low_db`` = the gain *reduction* the loop tolerates = min 20·log10|L| over the phase
   crossovers with |L| > 1 (a positive number; requirement tables often write it −6 dB),
-  ``gm_high_db`` = the gain *increase* = min −20·log10|L| over those with |L| < 1,
-  ``pm_deg`` = the phase margin 180° + ∠L at the gain crossover whose |margin| is smallest
-  (signed, as python-control reports it: negative = the phase is beyond −180°);
+  ``gm_high_db`` = the gain *increase* = min −20·log10|L| over those with |L| < 1 (every
+  phase crossover of the band counts, :data:`PM_FLOOR_RADPS` notes why);
+  ``pm_deg`` = the smallest distance over the gain crossovers of the band at or above
+  :data:`PM_FLOOR_RADPS` (``pm_signed_deg``: 180° + ∠L at that crossover, negative = the phase
+  is beyond −180°); ``pm_low_deg`` = the smallest distance over the gain crossovers below the
+  floor (the drift loop's: reported, not a criterion);
 * bending mode i, band [0.8, 1.2]·ω_i of the plant analysed (the band loop_margins uses):
   ``b{i}_peak_db`` = peak |L| in the band; ``b{i}_pm_deg`` / ``b{i}_gm_db`` the phase margin
-  over the gain crossovers and the gain margin (|20·log10|L||) over the phase crossovers
-  inside the band (inf if none); the mode is *gain-stabilised* if the peak is ≤ −6 dB
+  (distance) over the gain crossovers and the gain margin (|20·log10|L||) over the phase
+  crossovers inside the band (inf if none); the mode is *gain-stabilised* if the peak is ≤ −6 dB
   (requirement), otherwise it counts as *phase-stabilised* and passes if b{i}_pm ≥ 30° and
   b{i}_gm ≥ 6 dB there (the phase-stabilisation criterion, docs/ROBUST_ANALYSIS.md §1);
 * above the rigid band, outside both bending bands: ``hf_peak_db`` (a gain crossover there
@@ -84,6 +92,7 @@ from scipy.linalg import expm
 __all__ = [
     "frozen_stability", "check_table_stabilises",
     "REQUIREMENTS", "DISPERSED_CRITERION", "CRITERIA", "CSV_COLUMNS", "RIGID_CORNER_NAMES",
+    "PM_FLOOR_RADPS", "FREQUENCY_OF", "SAMPLED_DATA_KEYS",
     "BENDING_CORNER_NAMES", "BENDING_LOOP_NAMES", "JYY_TABLE_2_3",
     "runtime_rate", "flown_controller", "discrete_response", "ss_response", "zoh_response",
     "total_delay_s", "plant_loop_ss", "extract_margins", "sampled_data_model",
@@ -102,6 +111,32 @@ both sides, PM ≥ 30°, bending ≤ −6 dB or phase-stabilised with ≥ 30° /
 
 RIGID_EDGE = 0.8       # rigid-body band: ω < RIGID_EDGE·ω₁
 BAND = (0.8, 1.2)      # bending band: BAND·ω_i (as verification.loop_margins)
+
+PM_FLOOR_RADPS = 0.15
+"""Low-frequency floor of the rigid-body phase margin [rad/s]: the gain crossovers below it
+are reported (``pm_low_deg``), not counted in ``pm_deg``.
+
+Every loop here is a *frozen-time* loop: it speaks for the vehicle only over the time in which
+the plant may be taken as frozen. Around max-Q (47.3 s), where the atmospheric flight's plant
+changes most slowly (Q is stationary), the rigid-body loop's parameters in the flight-condition
+table — the aerodynamic stiffness μ_α = Q·S·C_Nα·l_CP/J_yy, the control effectiveness
+μ_c = T·l_CG-PVP/J_yy and Q itself — stay within 10 % of their max-Q values for at least 6.7 s
+on either side (μ_α and μ_c reach 10 % 6.7 s after max-Q, Q 7.4 s after; all later before it),
+changing by 1.2–1.6 %/s at 45–50 s; 10 % is the size of the thrust, density and x_CP
+dispersions the dispersed loops already cover. A gain crossover at ω sets closed-loop poles of
+natural frequency ≈ ω, which act on the time scale 1/ω; the frozen loop speaks for that
+crossover only if its time scale fits in the time the plant stays within 10 %: 1/ω ≤ 6.7 s,
+ω ≥ 0.15 rad/s (a period of 42 s). Elsewhere in the flight the plant changes faster (10 %
+within ≈ 3 s at 30 s and at 60 s), so the max-Q window gives the lowest floor that holds
+anywhere: a lower one could not be defended at any time.
+
+The drift loop's gain crossovers lie below it (0.004–0.09 rad/s, periods of 70 s to 25 min,
+against a 100 s flight): what they mean is in docs/FLIGHT_DESIGN.md §3.1. The rigid-body
+crossovers of the flown loops lie well above it (≥ 0.34 rad/s over the dispersed corners,
+0.46 rad/s nominal, at burn-out where Q vanishes).
+The gain margins keep every phase crossover of the rigid band: the gain-reduction margin of
+the aerodynamically unstable vehicle lies below the rigid crossover and falls to 0.14 rad/s
+at burn-out; the floor would hide that margin, not a drift phenomenon."""
 
 
 # ----------------------------------------------------------------------------------- pieces
@@ -218,7 +253,8 @@ def _interp_at(x0, x1, y0, y1, target):
     return x0 + f * (x1 - x0), f
 
 
-def extract_margins(w_radps, L, omega_modes: Sequence[float] = ()) -> dict:
+def extract_margins(w_radps, L, omega_modes: Sequence[float] = (),
+                    pm_floor_radps: float = PM_FLOOR_RADPS) -> dict:
     """Classical margins of a SISO loop L(jω) sampled on an increasing grid (module docstring).
 
     Parameters
@@ -231,15 +267,22 @@ def extract_margins(w_radps, L, omega_modes: Sequence[float] = ()) -> dict:
     omega_modes
         Bending frequencies [rad/s] of the plant analysed: the rigid-body band ends at
         0.8·ω₁, the bending bands are [0.8, 1.2]·ω_i. Empty: the whole grid is rigid body.
+    pm_floor_radps
+        Rigid-band gain crossovers below this frequency are reported apart (``pm_low_deg``),
+        not counted in ``pm_deg`` (:data:`PM_FLOOR_RADPS`).
 
     Returns
     -------
     dict
-        gm_low_db, w_gm_low_radps, gm_high_db, w_gm_high_radps, pm_deg, w_pm_radps (the
-        crossover of the reported PM), n_gain_crossovers (rigid band); per mode
-        b{i}_peak_db, b{i}_w_peak_radps, b{i}_pm_deg, b{i}_gm_db, b{i}_phase_stabilised;
-        hf_peak_db (above the rigid band, outside the bending bands; −inf if no such
-        frequency). A margin is inf (its frequency NaN) where there is no such crossover.
+        gm_low_db, w_gm_low_radps, gm_high_db, w_gm_high_radps (rigid band, each with its phase
+        crossover); pm_deg, w_pm_radps (the smallest distance of a gain crossover's phase from
+        −180°, over the rigid band at or above the floor, and that crossover), pm_signed_deg
+        (180° + ∠L there, in (−180°, 180°]), pm_low_deg, w_pm_low_radps (the same below the
+        floor), n_gain_crossovers (rigid band, below the floor too), n_low_gain_crossovers
+        (below the floor); per mode b{i}_peak_db, b{i}_w_peak_radps, b{i}_pm_deg,
+        b{i}_w_pm_radps, b{i}_gm_db, b{i}_w_gm_radps, b{i}_phase_stabilised; hf_peak_db (above
+        the rigid band, outside the bending bands; −inf if no such frequency). A margin is inf
+        (its frequency NaN) where there is no such crossover.
     """
     w = np.asarray(w_radps, dtype=float)
     L = np.asarray(L, dtype=complex)
@@ -260,13 +303,14 @@ def extract_margins(w_radps, L, omega_modes: Sequence[float] = ()) -> dict:
     pc_w, pc_db = np.array(pc_w), np.array(pc_db)
     # gain crossovers: |L| = 1
     idx = np.nonzero(np.sign(mag_db[:-1]) != np.sign(mag_db[1:]))[0]
-    gc_w, gc_pm = [], []
+    gc_w, gc_signed = [], []
     for k in idx:
         x, f = _interp_at(lw[k], lw[k + 1], mag_db[k], mag_db[k + 1], 0.0)
         ph = phase[k] + f * (phase[k + 1] - phase[k])
         gc_w.append(math.exp(x))
-        gc_pm.append((ph + 360.0) % 360.0 - 180.0)   # 180° + ∠L in (−180°, 180°]
-    gc_w, gc_pm = np.array(gc_w), np.array(gc_pm)
+        gc_signed.append((ph + 360.0) % 360.0 - 180.0)   # 180° + ∠L in (−180°, 180°]
+    gc_w, gc_signed = np.array(gc_w), np.array(gc_signed)
+    gc_pm = np.abs(gc_signed)          # the distance from −180° (mod 360°), either side
 
     modes = tuple(float(m) for m in omega_modes)
     edge = RIGID_EDGE * modes[0] if modes else np.inf
@@ -277,8 +321,13 @@ def extract_margins(w_radps, L, omega_modes: Sequence[float] = ()) -> dict:
     out["gm_low_db"], out["w_gm_low_radps"] = _pick_min(pc_db[low], pc_w[low])
     out["gm_high_db"], out["w_gm_high_radps"] = _pick_min(-pc_db[high], pc_w[high])
     rigid_gc = gc_w < edge
+    counted = rigid_gc & (gc_w >= pm_floor_radps)
+    below = rigid_gc & ~counted
     out["n_gain_crossovers"] = int(np.count_nonzero(rigid_gc))
-    out["pm_deg"], out["w_pm_radps"] = _pick_min_abs(gc_pm[rigid_gc], gc_w[rigid_gc])
+    out["n_low_gain_crossovers"] = int(np.count_nonzero(below))
+    out["pm_deg"], out["w_pm_radps"], out["pm_signed_deg"] = _pick_min(
+        gc_pm[counted], gc_w[counted], gc_signed[counted])
+    out["pm_low_deg"], out["w_pm_low_radps"] = _pick_min(gc_pm[below], gc_w[below])
     in_any_band = np.zeros(w.shape, dtype=bool)
     for i, w0 in enumerate(modes, start=1):
         a, b = BAND[0] * w0, BAND[1] * w0
@@ -291,27 +340,22 @@ def extract_margins(w_radps, L, omega_modes: Sequence[float] = ()) -> dict:
             out[f"b{i}_peak_db"], out[f"b{i}_w_peak_radps"] = -np.inf, float("nan")
         in_pc = (pc_w >= a) & (pc_w <= b)
         in_gc = (gc_w >= a) & (gc_w <= b)
-        out[f"b{i}_gm_db"] = float(np.min(np.abs(pc_db[in_pc]))) if np.any(in_pc) else np.inf
-        out[f"b{i}_pm_deg"] = (float(np.min(np.abs(gc_pm[in_gc]))) if np.any(in_gc)
-                               else np.inf)
+        out[f"b{i}_gm_db"], out[f"b{i}_w_gm_radps"] = _pick_min(np.abs(pc_db[in_pc]),
+                                                                 pc_w[in_pc])
+        out[f"b{i}_pm_deg"], out[f"b{i}_w_pm_radps"] = _pick_min(gc_pm[in_gc], gc_w[in_gc])
         out[f"b{i}_phase_stabilised"] = bool(out[f"b{i}_peak_db"] > REQUIREMENTS["bending_db"])
     rest = (w >= edge) & ~in_any_band
     out["hf_peak_db"] = float(np.max(mag_db[rest])) if np.any(rest) else -np.inf
     return out
 
 
-def _pick_min(values, where):
+def _pick_min(values, where, *also):
+    """(smallest value, its frequency, the ``also`` arrays at it); (inf, NaN, NaN …) when
+    there is none."""
     if values.size == 0:
-        return np.inf, float("nan")
+        return (np.inf, float("nan")) + (float("nan"),) * len(also)
     k = int(np.argmin(values))
-    return float(values[k]), float(where[k])
-
-
-def _pick_min_abs(values, where):
-    if values.size == 0:
-        return np.inf, float("nan")
-    k = int(np.argmin(np.abs(values)))
-    return float(values[k]), float(where[k])
+    return (float(values[k]), float(where[k])) + tuple(float(a[k]) for a in also)
 
 
 def _refine_peak(lw, mag_db, j):
@@ -538,12 +582,18 @@ def frozen_loop(data: LoopData, p, actuator, delay_s: float) -> FrozenLoop:
     return FrozenLoop(L, L_d, tuple(p.omega_radps), model, C)
 
 
+SAMPLED_DATA_KEYS = ("gm_low_db", "w_gm_low_radps", "gm_high_db", "w_gm_high_radps", "pm_deg",
+                     "w_pm_radps", "b1_peak_db", "b2_peak_db")
+"""The margins of the exact sampled-data loop kept in a row (``sd_`` + key), each with the
+frequency of its crossover."""
+
+
 def analyse_loop(data: LoopData, p, actuator, delay_s: float, nyquist: bool = True) -> dict:
     """Margins (both views) and stability of one frozen loop: a flat dict of numbers."""
     loop = frozen_loop(data, p, actuator, delay_s)
     row = extract_margins(data.w_radps, loop.L, loop.omega_modes)
     sd = extract_margins(data.w_radps, loop.L_d, loop.omega_modes)
-    for key in ("gm_low_db", "gm_high_db", "pm_deg", "b1_peak_db", "b2_peak_db"):
+    for key in SAMPLED_DATA_KEYS:
         row[f"sd_{key}"] = sd[key]
     row.update(sampled_data_stability(loop.model, loop.C, data.K, data.sign, nyquist=nyquist))
     return row
@@ -828,6 +878,13 @@ CRITERIA = {"gm_low_db": ("gm_low_db", "min", "dB"), "gm_high_db": ("gm_high_db"
             "pm_deg": ("pm_deg", "min", "deg"), "bending_1": ("b1_peak_db", "max", "dB"),
             "bending_2": ("b2_peak_db", "max", "dB")}
 
+FREQUENCY_OF = {"gm_low_db": "w_gm_low_radps", "gm_high_db": "w_gm_high_radps",
+                "pm_deg": "w_pm_radps", "pm_low_deg": "w_pm_low_radps",
+                "b1_peak_db": "b1_w_peak_radps", "b1_pm_deg": "b1_w_pm_radps",
+                "b1_gm_db": "b1_w_gm_radps", "b2_peak_db": "b2_w_peak_radps",
+                "b2_pm_deg": "b2_w_pm_radps", "b2_gm_db": "b2_w_gm_radps"}
+"""Row key of a margin -> row key of the frequency of the crossover (or peak) it belongs to."""
+
 
 def worst_row(rows: Sequence[Mapping], key: str, kind: str) -> Mapping:
     """The row with the smallest (``kind`` "min") or largest ("max") ``row[key]``."""
@@ -853,21 +910,26 @@ def _intervals(selected, all_times) -> list[list[float]]:
 
 
 def worst_per_time(rows: Sequence[dict]) -> list[dict]:
-    """Per time: the worst value and corner of each criterion over the stable loops, the
-    number of plants whose loop is unstable, and of those failing each bending criterion."""
+    """Per time: the worst value, corner and crossover frequency (``{key}_freq_radps``) of each
+    criterion over the stable loops, the same for the informational phase margin below the
+    floor (``pm_low_deg``), the number of plants whose loop is unstable, and of those failing
+    each bending criterion."""
     by_t: dict[float, list[dict]] = {}
     for r in rows:
         by_t.setdefault(r["t_s"], []).append(r)
     out = []
+    keys = [(key, kind) for key, kind, _ in CRITERIA.values()] + [("pm_low_deg", "min")]
     for t, rs in by_t.items():
         stable = [r for r in rs if r["n_unstable"] == 0]
         rec = {"t_s": t, "n_plants": len(rs), "n_unstable_plants": len(rs) - len(stable)}
-        for key, kind, _ in CRITERIA.values():
+        for key, kind in keys:
             if stable:
                 w = worst_row(stable, key, kind)
                 rec[key], rec[f"{key}_corner"] = w[key], w["corner"]
+                rec[f"{key}_freq_radps"] = w[FREQUENCY_OF[key]]
             else:
                 rec[key], rec[f"{key}_corner"] = float("nan"), None
+                rec[f"{key}_freq_radps"] = float("nan")
         rec["bending_1_fail_plants"] = sum(1 for r in rs if not bending_ok(r, 1))
         rec["bending_2_fail_plants"] = sum(1 for r in rs if not bending_ok(r, 2))
         out.append(rec)
@@ -905,7 +967,9 @@ def _where(row, corners):
 
 
 def verdicts(rows: Sequence[Mapping], corners=None, req: Mapping = REQUIREMENTS) -> dict:
-    """Worst value and where per criterion, pass/fail against ``req``, and stability.
+    """Worst value and where (time, corner, crossover frequency ``w_radps``) per criterion,
+    pass/fail against ``req``, and stability; ``pm_below_floor`` (no verdict): the loops with a
+    gain crossover below :data:`PM_FLOOR_RADPS` and the smallest phase margin there.
 
     The margins of an unstable loop say nothing about robustness: the worst value of each
     margin criterion is taken over the *stable* loops, and a criterion fails at the times where
@@ -933,11 +997,21 @@ def verdicts(rows: Sequence[Mapping], corners=None, req: Mapping = REQUIREMENTS)
             for what, k in (("band_pm", f"b{i}_pm_deg"), ("band_gm", f"b{i}_gm_db")):
                 if above:
                     r = worst_row(above, k, "min")
-                    res[name][f"worst_{what}"] = {"value": _finite(r[k]), **_where(r, corners)}
+                    res[name][f"worst_{what}"] = {"value": _finite(r[k]),
+                                                  "w_radps": _finite(r[FREQUENCY_OF[k]]),
+                                                  **_where(r, corners)}
         else:
-            res[name]["w_radps"] = _finite(w[{"gm_low_db": "w_gm_low_radps",
-                                               "gm_high_db": "w_gm_high_radps",
-                                               "pm_deg": "w_pm_radps"}[key]])
+            res[name]["w_radps"] = _finite(w[FREQUENCY_OF[key]])
+    if stable:
+        # not a criterion: the crossovers a frozen-time loop cannot speak for (PM_FLOOR_RADPS)
+        low = [r for r in stable if r["n_low_gain_crossovers"] > 0]
+        res["pm_below_floor"] = {"floor_radps": PM_FLOOR_RADPS, "unit": "deg",
+                                 "n_loops": len(low), "worst": None}
+        if low:
+            w = worst_row(low, "pm_low_deg", "min")
+            res["pm_below_floor"].update(worst=_finite(w["pm_low_deg"]),
+                                         w_radps=_finite(w["w_pm_low_radps"]),
+                                         **_where(w, corners))
     unstable = [r for r in rows if r["n_unstable"] > 0]
     times = sorted({r["t_s"] for r in unstable})
     res["stability"] = {"n_unstable_loops": len(unstable), "n_loops": len(rows),
@@ -959,7 +1033,11 @@ def summarise(result: Mapping, table=None, times: Sequence[float] = ()) -> dict:
                         "magnitude sinc", "delay": "exact exp(-jw tau), tau = 39 ms nominal",
                  "stability": "eigenvalues of the exact sampled-data closed loop "
                               "(modified z-transform), Nyquist cross-check on the nominal plant",
-                 "rigid_band": f"w < {RIGID_EDGE} w1", "bending_band": f"{BAND} w_i"},
+                 "rigid_band": f"w < {RIGID_EDGE} w1", "bending_band": f"{BAND} w_i",
+                 "phase_margin": "distance of the phase from -180 deg (mod 360, either side) "
+                                 "at a gain crossover; pm_deg over the rigid band at or above "
+                                 "pm_floor_radps, the crossovers below it reported apart",
+                 "pm_floor_radps": PM_FLOOR_RADPS},
         "requirements": dict(REQUIREMENTS),
         "times_s": {"first": times[0], "last": times[-1], "n": len(times)},
         "run_time_s": result.get("run_time_s"), "workers": result.get("workers"),
@@ -981,8 +1059,10 @@ def summarise(result: Mapping, table=None, times: Sequence[float] = ()) -> dict:
         stable = [r for r in seg if r["n_unstable"] == 0]
         worst = {}
         for name, (key, kind, unit) in CRITERIA.items():
-            w = worst_row(stable, key, kind) if stable else {key: None, "t_s": None}
-            worst[name] = {"worst": _finite(w[key]), "unit": unit, "t_s": w["t_s"]}
+            w = (worst_row(stable, key, kind) if stable
+                 else {key: None, "t_s": None, FREQUENCY_OF[key]: None})
+            worst[name] = {"worst": _finite(w[key]), "unit": unit, "t_s": w["t_s"],
+                           "w_radps": _finite(w[FREQUENCY_OF[key]])}
         segments.append({"interval_s": [a, b], "v_sched_mps": seg[0]["v_sched_mps"],
                          "worst": worst,
                          "unstable_times_s": [r["t_s"] for r in seg if r["n_unstable"] > 0]})
@@ -993,7 +1073,7 @@ def summarise(result: Mapping, table=None, times: Sequence[float] = ()) -> dict:
         key: _finite(max((abs(r[f"sd_{key}"] - r[key]) for r in nominal
                           if math.isfinite(r[key]) and math.isfinite(r[f"sd_{key}"])),
                          default=0.0))
-        for key in ("gm_low_db", "gm_high_db", "pm_deg", "b1_peak_db", "b2_peak_db")}
+        for key in SAMPLED_DATA_KEYS if not key.startswith("w_")}
     if len(corners) > 1:
         summary["dispersed"] = {
             "corners": {"n": len(corners), "rigid": list(RIGID_CORNER_NAMES),
@@ -1024,13 +1104,20 @@ def summarise(result: Mapping, table=None, times: Sequence[float] = ()) -> dict:
 CSV_COLUMNS = (
     "t_s", "corner", "v_sched_mps", "clamped", "v_plant_mps", "q_pa", "f1_hz", "f2_hz",
     "delay_s", "actuator_wn_radps", "gm_low_db", "w_gm_low_radps", "gm_high_db",
-    "w_gm_high_radps", "pm_deg", "w_pm_radps", "n_gain_crossovers",
-    "b1_peak_db", "b1_w_peak_radps", "b1_phase_stabilised", "b1_pm_deg", "b1_gm_db",
-    "b2_peak_db", "b2_w_peak_radps", "b2_phase_stabilised", "b2_pm_deg", "b2_gm_db",
+    "w_gm_high_radps", "pm_deg", "w_pm_radps", "pm_signed_deg", "n_gain_crossovers",
+    "pm_low_deg", "w_pm_low_radps", "n_low_gain_crossovers",
+    "b1_peak_db", "b1_w_peak_radps", "b1_phase_stabilised", "b1_pm_deg", "b1_w_pm_radps",
+    "b1_gm_db", "b1_w_gm_radps",
+    "b2_peak_db", "b2_w_peak_radps", "b2_phase_stabilised", "b2_pm_deg", "b2_w_pm_radps",
+    "b2_gm_db", "b2_w_gm_radps",
     "hf_peak_db", "n_unstable", "max_abs_eig", "n_open_unstable", "n_unstable_nyquist",
-    "sd_gm_low_db", "sd_gm_high_db", "sd_pm_deg", "sd_b1_peak_db", "sd_b2_peak_db")
+    "sd_gm_low_db", "sd_w_gm_low_radps", "sd_gm_high_db", "sd_w_gm_high_radps", "sd_pm_deg",
+    "sd_w_pm_radps", "sd_b1_peak_db", "sd_b2_peak_db")
 """margins.csv columns; the unit is the name's suffix (_db, _deg, _radps, _hz, _s, _mps, _pa);
-sd_* = the exact sampled-data loop; n_unstable_nyquist only on corner 0; inf = no crossover."""
+each margin is followed by the frequency of its crossover (``w_`` … ``_radps``); pm_deg is the
+distance from −180° over the crossovers at or above :data:`PM_FLOOR_RADPS` (pm_signed_deg its
+side), pm_low_deg the same below the floor (not a criterion); sd_* = the exact sampled-data
+loop; n_unstable_nyquist only on corner 0; inf = no crossover (its frequency nan)."""
 
 
 def _fmt(x) -> str:

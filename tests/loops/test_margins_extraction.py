@@ -40,8 +40,9 @@ def test_crossing_of_the_second_level_down():
     assert got["w_gm_low_radps"] == pytest.approx(_at(32, 64, 0.5), rel=1e-9)
     assert got["gm_high_db"] == math.inf and math.isnan(got["w_gm_high_radps"])
     f = 1.5 / 11.5                               # 0 dB between 64 (1.5 dB) and 128 (−10 dB)
-    phase = -541 + f * (-600 + 541)              # −548.7°: 180° + ∠L = −8.7°
-    assert got["pm_deg"] == pytest.approx(phase + 540.0, abs=1e-9)
+    phase = -541 + f * (-600 + 541)              # −548.7°: 8.7° beyond −540°
+    assert got["pm_deg"] == pytest.approx(-(phase + 540.0), abs=1e-9)
+    assert got["pm_signed_deg"] == pytest.approx(phase + 540.0, abs=1e-9)
     assert got["w_pm_radps"] == pytest.approx(_at(64, 128, f), rel=1e-9)
     assert got["n_gain_crossovers"] == 1
 
@@ -59,16 +60,18 @@ def test_gain_increase_margin_is_the_smallest_not_the_first():
     assert got["n_gain_crossovers"] == 0
 
 
-@pytest.mark.parametrize("phases, pm", [([-100, -120, -150, -170], 180 - 150 - 20 / 3),
-                                        ([-100, -120, -150, -250], 180 - 150 - 100 / 3)])
-def test_phase_margin_is_the_smallest_in_magnitude_with_its_sign(phases, pm):
+@pytest.mark.parametrize("phases, signed", [([-100, -120, -150, -170], 180 - 150 - 20 / 3),
+                                            ([-100, -120, -150, -250], 180 - 150 - 100 / 3)])
+def test_phase_margin_is_the_smallest_distance_from_minus_180(phases, signed):
     """Gain crossovers at 10 → −5 dB (f = ⅔), −5 → 5 (f = ½), 5 → −10 (f = ⅓): the third
-    has the smallest |180° + ∠L| (positive, or negative when the phase is beyond −180°)."""
+    is the closest to −180° (23.3° above it; 3.3° beyond it); the margin is that distance,
+    its side in pm_signed_deg."""
     w = [1, 2, 4, 8]
     m = [10, -5, 5, -10]
     got = M.extract_margins(w, _loop(w, m, phases))
     assert got["n_gain_crossovers"] == 3
-    assert got["pm_deg"] == pytest.approx(pm, abs=1e-9)
+    assert got["pm_deg"] == pytest.approx(abs(signed), abs=1e-9)
+    assert got["pm_signed_deg"] == pytest.approx(signed, abs=1e-9)
     assert got["w_pm_radps"] == pytest.approx(_at(4, 8, 1 / 3), rel=1e-9)
 
 
@@ -160,15 +163,18 @@ def test_band_margins_only_from_crossovers_in_the_band():
     ph = [-150, -170, -190, -200, -100, -170, -190, -220, -200, -100]
     got = M.extract_margins(w, _loop(w, m, ph), (10.0, 100.0))
     # rigid: −180° between 2 and 3 (f = ½: 1 dB) and between 4 and 8.5 (f = 0.2: −2.6 dB),
-    # 0 dB at 3 (phase −190°: pm −10°)
+    # 0 dB at 3 (phase −190°: 10° beyond −180°)
     assert got["gm_low_db"] == pytest.approx(1.0, abs=1e-9)
     assert got["gm_high_db"] == pytest.approx(2.6, abs=1e-9)
-    assert got["pm_deg"] == pytest.approx(-10.0, abs=1e-9)
+    assert got["pm_deg"] == pytest.approx(10.0, abs=1e-9)
+    assert got["pm_signed_deg"] == pytest.approx(-10.0, abs=1e-9)
     assert got["b1_gm_db"] == pytest.approx(8.0, abs=1e-9)       # 9 → 10: f = ½, −8 dB
     # band 1 gain crossovers: 10 → 11 (f = 10/13, phase −190 − 30 f), 11 → 11.5 (f = ½)
     pm_a = 180 + (-190 - 30 * 10 / 13)
     pm_b = 180 + (-220 + 0.5 * 20)
     assert got["b1_pm_deg"] == pytest.approx(min(abs(pm_a), abs(pm_b)), abs=1e-9)
+    assert got["b1_w_pm_radps"] == pytest.approx(_at(11, 11.5, 0.5), rel=1e-9)  # pm_b: 30°
+    assert got["b1_w_gm_radps"] == pytest.approx(_at(9, 10, 0.5), rel=1e-9)
     assert got["b1_peak_db"] > 3.0 - 1e-9 and 8.0 <= got["b1_w_peak_radps"] <= 12.0
 
 

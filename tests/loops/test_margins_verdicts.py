@@ -21,6 +21,7 @@ from vega_loops import margins as M
 ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = ROOT / "ros2_ws" / "src" / "vega_gnc" / "config" / "lpv_controller.npz"
 INF = math.inf
+NAN = math.nan
 
 
 def _row(t, corner=0, **kw):
@@ -28,13 +29,17 @@ def _row(t, corner=0, **kw):
     r = {"t_s": float(t), "corner": corner, "v_sched_mps": 100.0 + t, "clamped": False,
          "gm_low_db": 20.0 + t, "w_gm_low_radps": 0.1 + t, "gm_high_db": 21.0 + t,
          "w_gm_high_radps": 5.0 + t, "pm_deg": 50.0 + t, "w_pm_radps": 2.0 + t,
-         "n_gain_crossovers": 1,
+         "pm_signed_deg": 50.0 + t, "n_gain_crossovers": 1, "pm_low_deg": INF,
+         "w_pm_low_radps": NAN, "n_low_gain_crossovers": 0,
          "b1_peak_db": -20.0 - t, "b1_w_peak_radps": 30.0 + t, "b1_pm_deg": INF,
-         "b1_gm_db": INF, "b1_phase_stabilised": False,
+         "b1_w_pm_radps": NAN, "b1_gm_db": INF, "b1_w_gm_radps": NAN,
+         "b1_phase_stabilised": False,
          "b2_peak_db": -25.0 - t, "b2_w_peak_radps": 70.0 + t, "b2_pm_deg": INF,
-         "b2_gm_db": INF, "b2_phase_stabilised": False, "hf_peak_db": -30.0,
+         "b2_w_pm_radps": NAN, "b2_gm_db": INF, "b2_w_gm_radps": NAN,
+         "b2_phase_stabilised": False, "hf_peak_db": -30.0,
          "n_unstable": 0, "max_abs_eig": 0.99, "n_open_unstable": 0, "n_unstable_nyquist": 0,
-         "sd_gm_low_db": 20.0 + t, "sd_gm_high_db": 21.0 + t, "sd_pm_deg": 50.0 + t,
+         "sd_gm_low_db": 20.0 + t, "sd_w_gm_low_radps": 0.1 + t, "sd_gm_high_db": 21.0 + t,
+         "sd_w_gm_high_radps": 5.0 + t, "sd_pm_deg": 50.0 + t, "sd_w_pm_radps": 2.0 + t,
          "sd_b1_peak_db": -20.0 - t, "sd_b2_peak_db": -25.0 - t}
     r.update(kw)
     return r
@@ -42,6 +47,7 @@ def _row(t, corner=0, **kw):
 
 def _bending(peak, pm, gm):
     return {"b1_peak_db": peak, "b1_pm_deg": pm, "b1_gm_db": gm,
+            "b1_w_pm_radps": 31.0 - peak, "b1_w_gm_radps": 34.0 - peak,
             "b1_phase_stabilised": peak > -6.0}
 
 
@@ -135,13 +141,17 @@ def _sweep_rows():
     return [
         _row(0, 0),
         _row(0, 1, gm_low_db=5.0, w_gm_low_radps=0.7,                 # gm_low fails (5 < 6)
-             **_bending(-3.0, 40.0, 8.0)),                            # mode 1 phase-stab., ok
+             **_bending(-3.0, 40.0, 8.0),                             # mode 1 phase-stab., ok
+             pm_low_deg=48.0, w_pm_low_radps=0.03, n_low_gain_crossovers=1),  # drift: info
         _row(1, 0, gm_high_db=6.0, w_gm_high_radps=9.5, pm_deg=30.0,  # both exactly at limits
              b2_peak_db=-5.0, b2_pm_deg=25.0, b2_gm_db=10.0,           # mode 2 fails (25°)
-             b2_phase_stabilised=True, b2_w_peak_radps=71.5),
-        _row(1, 1, n_unstable=2, gm_low_db=0.1, pm_deg=-80.0, b1_peak_db=30.0,  # unstable
-             b2_peak_db=30.0, b2_pm_deg=0.0, b2_gm_db=0.0),
-        _row(2, 0, pm_deg=29.0, w_pm_radps=3.3),                      # pm fails
+             b2_phase_stabilised=True, b2_w_peak_radps=71.5, b2_w_pm_radps=72.0,
+             b2_w_gm_radps=69.0),
+        _row(1, 1, n_unstable=2, gm_low_db=0.1, pm_deg=0.5, b1_peak_db=30.0,  # unstable
+             b2_peak_db=30.0, b2_pm_deg=0.0, b2_gm_db=0.0, pm_low_deg=1.0,
+             w_pm_low_radps=0.01, n_low_gain_crossovers=2),
+        _row(2, 0, pm_deg=29.0, w_pm_radps=3.3,                       # pm fails
+             pm_low_deg=33.0, w_pm_low_radps=0.025, n_low_gain_crossovers=1),  # drift: info
         _row(2, 1, gm_low_db=5.5, gm_high_db=5.0, **_bending(-2.0, 35.0, 7.0)),
         _row(3, 0),
         _row(3, 1, n_unstable=1),
@@ -154,12 +164,16 @@ def test_worst_per_time_by_hand():
     got = M.worst_per_time(rows)
     assert [r["t_s"] for r in got] == [0.0, 1.0, 2.0, 3.0, 4.0]
     t0, t1, t2, t3, t4 = got
+    # below the floor (informational): corner 1's drift crossover, with its frequency
+    low = {k: t0.pop(k) for k in ("pm_low_deg", "pm_low_deg_corner", "pm_low_deg_freq_radps")}
+    assert low == {"pm_low_deg": 48.0, "pm_low_deg_corner": 1, "pm_low_deg_freq_radps": 0.03}
+    # each worst value with the frequency of the worst row's crossover (row values by hand)
     assert t0 == {"t_s": 0.0, "n_plants": 2, "n_unstable_plants": 0,
-                  "gm_low_db": 5.0, "gm_low_db_corner": 1,
-                  "gm_high_db": 21.0, "gm_high_db_corner": 0,
-                  "pm_deg": 50.0, "pm_deg_corner": 0,
-                  "b1_peak_db": -3.0, "b1_peak_db_corner": 1,
-                  "b2_peak_db": -25.0, "b2_peak_db_corner": 0,
+                  "gm_low_db": 5.0, "gm_low_db_corner": 1, "gm_low_db_freq_radps": 0.7,
+                  "gm_high_db": 21.0, "gm_high_db_corner": 0, "gm_high_db_freq_radps": 5.0,
+                  "pm_deg": 50.0, "pm_deg_corner": 0, "pm_deg_freq_radps": 2.0,
+                  "b1_peak_db": -3.0, "b1_peak_db_corner": 1, "b1_peak_db_freq_radps": 30.0,
+                  "b2_peak_db": -25.0, "b2_peak_db_corner": 0, "b2_peak_db_freq_radps": 70.0,
                   "bending_1_fail_plants": 0, "bending_2_fail_plants": 0}
     # t = 1: the unstable corner 1 is not the worst of anything, but is counted
     assert t1["n_unstable_plants"] == 1 and t1["n_plants"] == 2
@@ -169,13 +183,14 @@ def test_worst_per_time_by_hand():
     assert (t1["bending_1_fail_plants"], t1["bending_2_fail_plants"]) == (0, 2)
     assert (t2["gm_low_db"], t2["gm_low_db_corner"]) == (5.5, 1)
     assert (t2["gm_high_db"], t2["gm_high_db_corner"]) == (5.0, 1)
-    assert (t2["pm_deg"], t2["pm_deg_corner"]) == (29.0, 0)
+    assert (t2["pm_deg"], t2["pm_deg_corner"], t2["pm_deg_freq_radps"]) == (29.0, 0, 3.3)
     assert (t2["b1_peak_db"], t2["b1_peak_db_corner"]) == (-2.0, 1)
     assert t3["n_unstable_plants"] == 1 and t3["gm_low_db_corner"] == 0
     # all unstable: no worst value, every plant counted
     assert t4["n_unstable_plants"] == 2 and t4["n_plants"] == 2
     for key in ("gm_low_db", "gm_high_db", "pm_deg", "b1_peak_db", "b2_peak_db"):
         assert math.isnan(t4[key]) and t4[f"{key}_corner"] is None
+        assert math.isnan(t4[f"{key}_freq_radps"])
     assert (t4["bending_1_fail_plants"], t4["bending_2_fail_plants"]) == (1, 0)
 
 
@@ -184,7 +199,11 @@ def test_verdicts_by_hand():
     corners = [{"a": 0.0, "b": 0.0}, {"a": 0.1, "b": 0.0}]
     v = M.verdicts(rows, corners)
     assert set(v) == {"gm_low_db", "gm_high_db", "pm_deg", "bending_1", "bending_2",
-                      "stability"}
+                      "pm_below_floor", "stability"}
+    # below the floor: two stable loops (the unstable one's 1° does not count), no verdict
+    assert v["pm_below_floor"] == {"floor_radps": M.PM_FLOOR_RADPS, "unit": "deg",
+                                   "n_loops": 2, "worst": 33.0, "w_radps": 0.025, "t_s": 2.0,
+                                   "corner": 0, "family": "nominal", "deviations": {}}
     assert v["gm_low_db"] == {"worst": 5.0, "unit": "dB", "pass": False, "n_fail_times": 2,
                               "fail_intervals_s": [[0.0, 0.0], [2.0, 2.0]], "t_s": 0.0,
                               "corner": 1, "family": "rigid", "deviations": {"a": 0.1},
@@ -202,19 +221,19 @@ def test_verdicts_by_hand():
         "t_s": 2.0, "corner": 1, "family": "rigid", "deviations": {"a": 0.1},
         "phase_stabilised": True, "pm_deg": 35.0, "gm_db": 7.0, "w_peak_radps": 32.0,
         "n_above_limit_loops": 2,
-        "worst_band_pm": {"value": 35.0, "t_s": 2.0, "corner": 1, "family": "rigid",
-                          "deviations": {"a": 0.1}},
-        "worst_band_gm": {"value": 7.0, "t_s": 2.0, "corner": 1, "family": "rigid",
-                          "deviations": {"a": 0.1}}}
+        "worst_band_pm": {"value": 35.0, "w_radps": 33.0, "t_s": 2.0, "corner": 1,
+                          "family": "rigid", "deviations": {"a": 0.1}},
+        "worst_band_gm": {"value": 7.0, "w_radps": 36.0, "t_s": 2.0, "corner": 1,
+                          "family": "rigid", "deviations": {"a": 0.1}}}
     assert v["bending_2"] == {
         "worst": -5.0, "unit": "dB", "pass": False, "n_fail_times": 1,
         "fail_intervals_s": [[1.0, 1.0]], "t_s": 1.0, "corner": 0, "family": "nominal",
         "deviations": {}, "phase_stabilised": True, "pm_deg": 25.0, "gm_db": 10.0,
         "w_peak_radps": 71.5, "n_above_limit_loops": 1,
-        "worst_band_pm": {"value": 25.0, "t_s": 1.0, "corner": 0, "family": "nominal",
-                          "deviations": {}},
-        "worst_band_gm": {"value": 10.0, "t_s": 1.0, "corner": 0, "family": "nominal",
-                          "deviations": {}}}
+        "worst_band_pm": {"value": 25.0, "w_radps": 72.0, "t_s": 1.0, "corner": 0,
+                          "family": "nominal", "deviations": {}},
+        "worst_band_gm": {"value": 10.0, "w_radps": 69.0, "t_s": 1.0, "corner": 0,
+                          "family": "nominal", "deviations": {}}}
     assert v["stability"] == {"n_unstable_loops": 2, "n_loops": 8, "n_unstable_times": 2,
                               "unstable_intervals_s": [[1.0, 1.0], [3.0, 3.0]], "pass": False}
 
@@ -280,7 +299,11 @@ def test_summarise_nominal_by_hand():
         "delay": "exact exp(-jw tau), tau = 39 ms nominal",
         "stability": "eigenvalues of the exact sampled-data closed loop (modified "
                      "z-transform), Nyquist cross-check on the nominal plant",
-        "rigid_band": "w < 0.8 w1", "bending_band": "(0.8, 1.2) w_i"}
+        "rigid_band": "w < 0.8 w1", "bending_band": "(0.8, 1.2) w_i",
+        "phase_margin": "distance of the phase from -180 deg (mod 360, either side) at a "
+                        "gain crossover; pm_deg over the rigid band at or above "
+                        "pm_floor_radps, the crossovers below it reported apart",
+        "pm_floor_radps": M.PM_FLOOR_RADPS}
     assert s["requirements"] == {"gm_db": 6.0, "pm_deg": 30.0, "bending_db": -6.0,
                                  "bending_phase_pm_deg": 30.0, "bending_phase_gm_db": 6.0}
     assert s["times_s"] == {"first": 0.0, "last": 5.0, "n": 6}
@@ -302,11 +325,13 @@ def test_summarise_nominal_by_hand():
     seg0, seg1 = nom["clamped_segments"]
     assert seg0["interval_s"] == [0.0, 1.0] and seg0["v_sched_mps"] == 95.0
     assert seg0["unstable_times_s"] == [1.0]
-    assert seg0["worst"] == {"gm_low_db": {"worst": 20.0, "unit": "dB", "t_s": 0.0},
-                             "gm_high_db": {"worst": 21.0, "unit": "dB", "t_s": 0.0},
-                             "pm_deg": {"worst": 28.0, "unit": "deg", "t_s": 0.0},
-                             "bending_1": {"worst": -20.0, "unit": "dB", "t_s": 0.0},
-                             "bending_2": {"worst": -25.0, "unit": "dB", "t_s": 0.0}}
+    # each worst with its crossover (the peak for bending): the t = 0 row's frequencies
+    assert seg0["worst"] == {
+        "gm_low_db": {"worst": 20.0, "unit": "dB", "t_s": 0.0, "w_radps": 0.1},
+        "gm_high_db": {"worst": 21.0, "unit": "dB", "t_s": 0.0, "w_radps": 5.0},
+        "pm_deg": {"worst": 28.0, "unit": "deg", "t_s": 0.0, "w_radps": 2.0},
+        "bending_1": {"worst": -20.0, "unit": "dB", "t_s": 0.0, "w_radps": 30.0},
+        "bending_2": {"worst": -25.0, "unit": "dB", "t_s": 0.0, "w_radps": 70.0}}
     assert seg1["interval_s"] == [5.0, 5.0] and seg1["v_sched_mps"] == 1780.0
     assert seg1["unstable_times_s"] == [5.0]
     assert all(w["worst"] is None and w["t_s"] is None for w in seg1["worst"].values())
@@ -331,7 +356,7 @@ def test_summarise_all_clamped_has_no_inside_verdict():
     assert s["nominal_controller_not_clamped"] is None
     assert s["run_time_s"] is None and s["workers"] is None
     assert s["nominal"]["clamped_segments"][0]["worst"]["pm_deg"] == {
-        "worst": 50.0, "unit": "deg", "t_s": 0.0}
+        "worst": 50.0, "unit": "deg", "t_s": 0.0, "w_radps": 2.0}
     assert s["nominal"]["nyquist_disagreements"] == 0
 
 
@@ -432,9 +457,9 @@ def test_write_csv_by_hand(tmp_path):
     lines = path.read_text().splitlines()
     assert lines[0] == ",".join(M.CSV_COLUMNS) and len(lines) == 2
     cells = lines[1].split(",")
-    assert len(cells) == len(M.CSV_COLUMNS) == 37
+    assert len(cells) == len(M.CSV_COLUMNS) == 48
     assert cells[:4] == ["0.5", "0", "", "1"] and cells[14] == "31.1235"
-    assert cells[4:14] == [""] * 10 and cells[15:] == [""] * 22
+    assert cells[4:14] == [""] * 10 and cells[15:] == [""] * 33
 
 
 # ------------------------------------------------------------------------ small helpers

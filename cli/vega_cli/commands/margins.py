@@ -3,9 +3,12 @@
 The loop is broken at the actuator input, with the table's discrete controller interpolated
 and clamped exactly as the on-board runtime does, the zero-order hold, the 39 ms loop delay,
 the TVC actuator and the linear plant of ``vega linearize`` (vega_loops.margins). Per
-time: rigid-body gain margins (low: gain reduction, high: gain increase) and phase margin,
-the peak loop gain in each bending band (and the crossover margins of a mode above −6 dB),
-and the closed-loop stability of the exact sampled-data loop. ``--dispersed`` adds 640
+time: rigid-body gain margins (low: gain reduction, high: gain increase) and phase margin
+(the distance of a gain crossover's phase from −180°, either side, over the crossovers at or
+above the frozen-time floor ``vega_loops.margins.PM_FLOOR_RADPS``; those below it are reported
+apart), each with the frequency of its crossover, the peak loop gain in each bending band (and
+the crossover margins of a mode above −6 dB), and the closed-loop stability of the exact
+sampled-data loop. ``--dispersed`` adds 640
 corners of the uncertainty set and the plant with thesis Table 2.3's pitch inertia, with the
 controller on the nominal schedule, and reports the worst corner per time.
 
@@ -49,21 +52,30 @@ def _v(x, width=6, prec=1, bad=False) -> str:
     return f"{s + ('!' if bad else ' '):>{width + 1}}"
 
 
+def _at(w_radps) -> str:
+    """``@ω`` of a crossover [rad/s] (blank when there is none)."""
+    if w_radps is None or (isinstance(w_radps, float) and not math.isfinite(w_radps)):
+        return " " * 7
+    return f"@{w_radps:<6.3g}"
+
+
 def _line(r, ok) -> str:
     b = lambda i: _v(r[f"b{i}_peak_db"], bad=not ok[f"bending_{i}"]) + (  # noqa: E731
         "p" if r[f"b{i}_phase_stabilised"] else " ")
-    gm = _v(r["gm_low_db"], bad=not ok["gm_low_db"]) + _v(r["gm_high_db"],
-                                                           bad=not ok["gm_high_db"])
+    gm = (_v(r["gm_low_db"], bad=not ok["gm_low_db"]) + _at(r["w_gm_low_radps"])
+          + _v(r["gm_high_db"], bad=not ok["gm_high_db"]) + _at(r["w_gm_high_radps"]))
     return (f"{r['t_s']:6.1f} {r['v_sched_mps']:7.1f}{'c' if r['clamped'] else ' '}|{gm}"
-            f"{_v(r['pm_deg'], bad=not ok['pm_deg'])} |{b(1)}{b(2)}|"
+            f"{_v(r['pm_deg'], bad=not ok['pm_deg'])}{_at(r['w_pm_radps'])}|{b(1)}{b(2)}|"
             f"{r['n_unstable']:3d}{'!' if r['n_unstable'] else ' '}")
 
 
 def _worst_line(w, req) -> str:
-    """The worst corner of each criterion at one time (! = a stable loop misses it)."""
+    """The worst corner of each criterion at one time, with its crossover frequency (! = a
+    stable loop misses it)."""
     def flag(key, limit):
         x = w[key]
-        return _v(x, bad=isinstance(x, float) and math.isfinite(x) and x < limit)
+        return (_v(x, bad=isinstance(x, float) and math.isfinite(x) and x < limit)
+                + _at(w[f"{key}_freq_radps"]))
 
     return (f" | {flag('gm_low_db', req['gm_db'])}{flag('gm_high_db', req['gm_db'])}"
             f"{flag('pm_deg', req['pm_deg'])} "
@@ -74,6 +86,8 @@ def _worst_line(w, req) -> str:
 
 def _fmt_where(v) -> str:
     where = f"t = {v['t_s']:g} s"
+    if v.get("w_radps") is not None:
+        where += f", {v['w_radps']:.3g} rad/s"
     if "deviations" in v:
         where += f", corner {v['corner']} ({v['family']}: " + (
             ", ".join(f"{k} {d:+g}" for k, d in v["deviations"].items()) or "nominal") + ")"
@@ -97,6 +111,8 @@ def _print_verdicts(title, res, relaxed=None) -> None:
         v = res[name]
         worst = "none" if v["worst"] is None else f"{v['worst']:.2f} {v['unit']}"
         where = "" if v["worst"] is None else f" at {_fmt_where(v)}"
+        if v["worst"] is not None and v.get("w_peak_radps") is not None:
+            where += f", peak at {v['w_peak_radps']:.3g} rad/s"
         if name.startswith("bending") and v.get("n_above_limit_loops"):
             pm, gm = v["worst_band_pm"], v["worst_band_gm"]
             where += (f"; above -6 dB in {v['n_above_limit_loops']} loop(s), worst in-band "
@@ -108,6 +124,11 @@ def _print_verdicts(title, res, relaxed=None) -> None:
             verdict += ("; relaxed: PASS" if r["pass"] else
                         f"; relaxed: FAIL at {r['n_fail_times']} time(s) {_when(r)}")
         print(f"  {name:11s} worst {worst}{where}: {verdict}")
+    low = res.get("pm_below_floor")
+    if low and low["n_loops"]:
+        print(f"  (not a criterion) {low['n_loops']} loop(s) with a gain crossover below "
+              f"{low['floor_radps']:g} rad/s (too slow for a frozen-time loop), smallest "
+              f"distance from -180 deg there {low['worst']:.1f} deg at {_fmt_where(low)}")
     s = res["stability"]
     print(f"  stability   {s['n_unstable_loops']} of {s['n_loops']} frozen loops unstable"
           + (f", at {s['n_unstable_times']} time(s): {_when(s)} s" if s["n_unstable_loops"]
@@ -150,13 +171,15 @@ def _run(args: argparse.Namespace) -> int:
     print(f"vega margins: table {table_path} (rate slice {M.runtime_rate(table)} m/s², "
           f"grid {table.grid_v_mps[0]:.1f}-{table.grid_v_mps[-1]:.1f} m/s), "
           f"T = {table.dt_s * 1000:g} ms, delay {M.total_delay_s(context.vehicle) * 1000:g} ms")
-    print("  GM low = gain reduction, GM high = gain increase [dB]; PM [deg]; B1/B2 = peak loop "
-          "gain in the band [dB] (p: above -6 dB); unst = unstable closed-loop poles; "
-          "c = controller clamped; ! = requirement not met")
-    head = ("   t_s  v_schd |GM low GM hi     PM  |   B1      B2    |unst")
+    print("  GM low = gain reduction, GM high = gain increase [dB]; PM = distance of the phase "
+          f"from -180 deg at the closest gain crossover at or above {M.PM_FLOOR_RADPS:g} rad/s "
+          "[deg]; @ = that crossover's frequency [rad/s]; B1/B2 = peak loop gain in the band "
+          "[dB] (p: above -6 dB); unst = unstable closed-loop poles; c = controller clamped; "
+          "! = requirement not met")
+    head = ("   t_s  v_schd | GM low @rad/s  GM hi @rad/s     PM @rad/s |   B1      B2    |unst")
     if args.dispersed:
-        head += (f" | worst of {len(result['corners'])} plants: GM lo  GM hi     PM     B1     "
-                 f"B2  unstable")
+        head += (f" | worst of {len(result['corners'])} plants: GM lo @rad/s  GM hi @rad/s     "
+                 f"PM @rad/s     B1      B2  unstable")
     print(head)
     for k, r in enumerate(nominal):
         ok = M.criteria_ok(r)
