@@ -41,6 +41,7 @@ import numpy as np
 
 from vega_campaign.campaign import _fail, _keys, _number
 from vega_core.documents import parse_yaml, read_text
+from vega_loops.blas import one_blas_thread
 from vega_model.wind import WindTable
 
 __all__ = ["FINE_STEP_M", "MODES", "DEFAULT_MODE", "DEFAULT_LAG_S", "COLUMNS", "Site",
@@ -260,6 +261,7 @@ def _cholesky(corr: np.ndarray) -> np.ndarray:
     return np.linalg.cholesky(corr + 1e-10 * np.eye(corr.shape[0]))
 
 
+@one_blas_thread
 def _factors(z, fine, corr_m, exponent, resolved_m, change_corr_m) -> dict:
     dz = np.abs(z[:, None] - z[None, :])
     df = np.abs(fine[:, None] - fine[None, :])
@@ -367,6 +369,7 @@ def _indices(n, indices) -> np.ndarray:
     return idx
 
 
+@one_blas_thread
 def climate_levels(site: Site, month: int, seed: int, n: int | None = None,
                    indices=None) -> np.ndarray:
     """The climatological vector wind at the table's levels, (n, K, 2) [m/s] (u east, v north).
@@ -424,6 +427,7 @@ class WindSamples:
     change_mps: np.ndarray
 
 
+@one_blas_thread
 def sample_profiles(site: Site, month: int, n: int | None = None, seed: int = 0,
                     lag_s: float = DEFAULT_LAG_S, mode: str = DEFAULT_MODE,
                     indices=None) -> WindSamples:

@@ -39,6 +39,7 @@ from typing import Mapping
 import numpy as np
 import scipy.sparse as sp
 
+from vega_loops.blas import one_blas_thread
 from vega_gnc.guidance_reference import GuidanceReference
 from vega_model.parameters import ModelContext, default_context
 from vega_reference.guidance import (DesignWind, GuidanceDesign, GuidanceWeights,
@@ -79,6 +80,7 @@ class GuidanceQP:
     exponentials); a solve is the sparse QP of the module docstring only.
     """
 
+    @one_blas_thread
     def __init__(self, weights: GuidanceWeights | None = None, *,
                  context: ModelContext | None = None, requirements=None):
         from vega_sim.requirements import load_requirements
@@ -160,6 +162,7 @@ class GuidanceQP:
         # the constant of the cost: Δt Σ (d_k v_w,k / E_k)² = v_wᵀ diag(Δt d²/E²) v_w
         self._const = dt * (dq / env) ** 2
 
+    @one_blas_thread
     def solve(self, wind: DesignWind) -> GuidanceDesign:
         """The reference for the design wind ``wind`` (:class:`GuidanceDesign`; its summary's
         ``solver`` entry records the route, status, iterations, time and cost).

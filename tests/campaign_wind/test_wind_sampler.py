@@ -193,3 +193,23 @@ def test_full_speed_puts_the_whole_measured_speed_in_the_plane(site):
     plane = sample_profiles(site, 1, n=20, seed=2, mode="in_plane")
     assert np.all(full.measured_wind_mps >= 0.0)
     assert np.all(full.measured_wind_mps >= np.abs(plane.measured_wind_mps) - 1e-9)
+
+
+@pytest.mark.slow
+def test_a_sample_is_the_same_bits_whatever_the_blas_thread_count():
+    """A Dask worker runs one BLAS thread, the command line two here: the site's factors and
+    the samples are computed with one thread either way (vega_loops.blas), so a campaign's
+    recorded profile is re-drawn bit for bit by `vega mc rerun`."""
+    from threadpoolctl import threadpool_limits
+
+    from vega_campaign.wind_environment import default_site_path, parse_site, sample_profiles
+
+    text = default_site_path().read_text()
+    out = []
+    for threads in (1, 2):
+        with threadpool_limits(limits=threads, user_api="blas"):
+            site = parse_site(text, "kourou.yaml")
+            s = sample_profiles(site, 7, n=40, seed=3)
+        out.append((site._factors["small"], s.measured_wind_mps, s.flown_wind_mps))
+    for a, b in zip(*out):
+        assert a.tobytes() == b.tobytes()
