@@ -61,6 +61,14 @@ it flies (≈ 0.6 GB per worker at 64), and a killed campaign loses at most one 
 worker."""
 
 
+ENVIRONMENT_BATCH = 8
+"""Most samples in one task of a campaign flown by an environment's task (the flight day),
+whose samples fly one at a time (each its own guidance reference): the batch only sets how
+often rows reach the disk and the progress line, and how many a killed campaign loses; the
+task's fixed cost (the guidance problem's assembly, ≈ 8 CPU s) is paid once per worker
+process, not per task."""
+
+
 def batches(todo: Sequence[int], size: int, workers: int) -> list[list[int]]:
     """The samples ``todo`` cut into consecutive batches of at most ``size``.
 
@@ -144,10 +152,19 @@ def _cluster(workers: int | None, scheduler: str | None):
     return Client(cluster), cluster
 
 
+def _failed(row: dict) -> bool:
+    """Whether a row counts as a failure in the progress line: a flight-day row by its
+    flight-day verdict (a scrubbed sample is no failure), any other by ``verdict``."""
+    if "flight_day_verdict" in row:
+        return row["flight_day_verdict"] == "fail"
+    return row["verdict"] != "pass"
+
+
 def run_campaign(scenario, dispersions, *, runs: int, seed: int, out: Path, table_path: Path,
                  workers: int | None = None, scheduler: str | None = None, resume: bool = False,
                  progress: Callable[[str], None] = print, kind: str = "flights",
-                 times_s=None, batch: int = DEFAULT_BATCH) -> list[dict]:
+                 times_s=None, batch: int = DEFAULT_BATCH, environment: dict | None = None,
+                 task: Callable | None = None) -> list[dict]:
     """Fly the campaign's missing samples on Dask; return every row (finished before or now).
 
     ``kind``: ``"flights"`` (:func:`~vega_campaign.campaign.fly_batch_samples` on
@@ -157,6 +174,13 @@ def run_campaign(scenario, dispersions, *, runs: int, seed: int, out: Path, tabl
     names the campaign). ``progress`` gets a line per finished batch (per twentieth of the
     samples when they are flown one per task).
 
+    ``environment`` and ``task``: a flights campaign in another wind environment (the flight
+    day, :mod:`vega_signoff.flight_day`, which sits above this package). ``environment`` is
+    stored in campaign.json (on a resume, the stored one is used); ``task`` flies a list of
+    samples and returns their rows, called as ``task(scenario_yaml, table, dispersions_yaml,
+    seed, environment, out_dir, indices)`` — one Dask task per batch (a batch of one sample
+    when ``batch`` is 1).
+
     Raises
     ------
     BadArgument
@@ -164,6 +188,8 @@ def run_campaign(scenario, dispersions, *, runs: int, seed: int, out: Path, tabl
     """
     out = Path(out)
     inputs = _inputs(scenario, dispersions, seed, runs, Path(table_path), kind, times_s)
+    if environment is not None:
+        inputs["environment"] = environment
     campaign_file = out / CAMPAIGN_FILE
     if resume:
         if not campaign_file.is_file():
@@ -187,18 +213,27 @@ def run_campaign(scenario, dispersions, *, runs: int, seed: int, out: Path, tabl
              f"{len(done)} already flown, {len(todo)} to fly")
     if not todo:
         return read_rows(out)
+    if inputs.get("environment") is not None and task is None:
+        raise ValueError("run_campaign: a campaign with an environment needs its task")
     from distributed import as_completed
 
     client, cluster = _cluster(workers, scheduler)
     t0 = time.monotonic()
-    failures = sum(1 for r in read_rows(out) if r["verdict"] != "pass")
+    failures = sum(1 for r in read_rows(out) if _failed(r))
     try:
         n_workers = len(client.scheduler_info().get("workers", {}))
         progress(f"mc: Dask {'scheduler ' + scheduler if scheduler else 'LocalCluster'}, "
                  f"{n_workers} workers")
         args = (inputs["scenario_yaml"], inputs["table"], inputs["dispersions_yaml"],
                 inputs["seed"])
-        if inputs.get("kind", "flights") == "margins":
+        if inputs.get("environment") is not None:
+            groups = batches(todo, min(batch, ENVIRONMENT_BATCH), n_workers)
+            progress(f"mc: {inputs['environment'].get('name')} environment, {len(groups)} "
+                     f"task(s) of up to {max(map(len, groups))} samples (one flight at a time)")
+            futures = [client.submit(task, *args, inputs["environment"], str(out.resolve()),
+                                     group, pure=False, key=f"batch-{group[0]}-{len(group)}")
+                       for group in groups]
+        elif inputs.get("kind", "flights") == "margins":
             futures = [client.submit(margins_sample, inputs["table"], inputs["dispersions_yaml"],
                                      inputs["seed"], i, inputs["times_s"], pure=False,
                                      key=f"sample-{i}") for i in todo]
@@ -221,7 +256,7 @@ def run_campaign(scenario, dispersions, *, runs: int, seed: int, out: Path, tabl
             rows = got if isinstance(got, list) else [got]
             for row in rows:
                 _write_json(out / SAMPLES_DIR / f"{row['sample']:06d}.json", row)
-                failures += row["verdict"] != "pass"
+                failures += _failed(row)
             before, k = k, k + len(rows)
             step = max(1, len(todo) // 20)
             if k == len(todo) or isinstance(got, list) or k // step > before // step:
@@ -417,9 +452,11 @@ def _plot_q_alpha_band(out: Path, profiles: np.ndarray) -> Path:
     return path
 
 
-def plot_campaign(out: Path, rows: Sequence[dict], summary: dict) -> list[Path]:
+def plot_campaign(out: Path, rows: Sequence[dict], summary: dict,
+                  not_dispersed: Sequence[str] = ()) -> list[Path]:
     """Histograms of the metrics against their bounds, and a tornado chart of the rank
-    correlation of each dispersed parameter with the Qα ratio."""
+    correlation of each dispersed parameter with the Qα ratio (``not_dispersed``: result
+    columns beyond the thesis-box row's, left out of it)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -445,7 +482,7 @@ def plot_campaign(out: Path, rows: Sequence[dict], summary: dict) -> list[Path]:
 
     params = [k for k in rows[0] if k not in METRICS and k not in STATUS_COLUMNS
               and k not in ("sample", "seed", "verdict", "failed", "wall_s", "stable",
-                            "q_alpha_profile_pa_deg")
+                            "q_alpha_profile_pa_deg", *not_dispersed)
               and np.ptp([r[k] for r in rows if not math.isnan(r[k])] or [0]) > 0]
     rho = []
     for k in params:

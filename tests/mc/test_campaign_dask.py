@@ -269,6 +269,32 @@ def test_rerun_of_a_sample_through_the_ros_nodes_gives_its_row(reference_run, tm
 
 
 @pytest.mark.slow
+@pytest.mark.ros
+def test_rerun_of_a_flight_day_sample_through_the_ros_nodes_gives_its_row(scenario, tmp_path,
+                                                                          capsys):
+    """A flight-day campaign (statistical wind, guidance re-biased per sample, LCC): sample 1
+    (February's flown profile, its own reference file in the campaign directory) flown again
+    by the five SIL processes gives every metric of its row, the §6 and §2 verdicts and the
+    time and Mach of max |Qα| included."""
+    camp = tmp_path / "fd"
+    code = cli.main(["mc", "run", "--scenario", str(scenario), "--runs", "2", "--seed", "4",
+                     "--workers", "1", "--environment", "flight-day", "--out", str(camp)])
+    assert code in (0, 1)
+    summary = json.loads((camp / "summary.json").read_text())
+    assert summary["flight_day"]["n"] + summary["flight_day"]["scrubbed"] == 2
+    assert set(summary["availability"]) == {"1", "2"}
+    row = json.loads((camp / "samples" / "000001.json").read_text())
+    assert row["month"] == 2 and "passed_allowable" in row and "lcc_go" in row
+    capsys.readouterr()
+    code = cli.main(["mc", "rerun", str(camp), "--sample", "1", "--out", str(tmp_path / "r")])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "every metric of the campaign row identical" in out
+    flown = (tmp_path / "r" / "nominal_mc_short_fd1.yaml").read_text()
+    assert str((camp / "flight_day" / "000001_guidance.npz").resolve()) in flown
+
+
+@pytest.mark.slow
 def test_rerun_bad_input(reference, tmp_path, capsys):
     assert cli.main(["mc", "rerun", str(reference), "--sample", str(RUNS)]) == 2
     assert "the campaign has samples 0-5" in capsys.readouterr().err

@@ -12,13 +12,20 @@ and won, McNemar's exact p; exit 0 after the report, 2 for campaigns that are no
 not fly the same samples.
 
 ``vega mc run --scenario NAME|PATH --runs N [--dispersions FILE] [--seed S] [--out DIR]
-[--table FILE] [--workers K | --scheduler ADDRESS] [--batch B] [--resume DIR]`` flies N dispersed
+[--table FILE] [--workers K | --scheduler ADDRESS] [--batch B] [--resume DIR]
+[--environment thesis-box|flight-day [--site FILE] [--month M] [--lag-s L] [--mode MODE]
+[--lcc FILE]]`` flies N dispersed
 copies of the scenario in process on a Dask cluster (a LocalCluster of K worker processes on
 127.0.0.1 by default), in batches of up to B samples per task (the batched engine; ``--batch 1``:
 one flight per task, the per-flight path; the same rows either way), writes every finished
 sample as it comes, then ``results.parquet``, ``summary.json``, ``summary.md`` and plots. Exit
 status: 0 if every flight passed, 1 if one failed, 2 on bad input (checked before anything
-starts).
+starts). ``--environment flight-day`` (:mod:`vega_signoff.flight_day`): the site's statistical
+winds, the guidance re-biased per sample to its sounding, the launch commit criterion judged
+before each sample flies (every sample is flown); exit 0 when at least one sample was go and
+every go sample passes the flight-day verdict, 1 otherwise. The default stays
+``thesis-box``, the campaign ``vega verify``, ``vega ship`` and the shipped sign-off record are
+tied to.
 """
 
 from __future__ import annotations
@@ -107,6 +114,10 @@ def _resumed_inputs(path) -> dict:
     if times is not None and not (isinstance(times, list) and all(
             isinstance(t, (int, float)) and not isinstance(t, bool) for t in times)):
         raise BadFile(f"{path}: field 'times_s': must be null or a list of numbers")
+    if inputs.get("environment") is not None:
+        from vega_signoff.flight_day import parse_environment
+
+        parse_environment(inputs["environment"], str(path))
     if not 1 <= inputs["runs"] <= MAX_RUNS:
         raise BadFile(f"{path}: field 'runs': must be within 1..{MAX_RUNS}, got "
                       f"{inputs['runs']}")
@@ -145,7 +156,7 @@ def _campaign(args: argparse.Namespace, kind: str) -> dict:
                                           inputs["dispersions_path"]),
                 "seed": inputs["seed"], "runs": inputs["runs"],
                 "table_path": Path(inputs["table"]), "out": out,
-                "times": inputs.get("times_s")}
+                "times": inputs.get("times_s"), "environment": inputs.get("environment")}
     if args.runs is None:
         raise BadArgument("--runs N is required (or --resume DIR)")
     seed = _checked_seed(args.seed) or 0
@@ -157,11 +168,30 @@ def _campaign(args: argparse.Namespace, kind: str) -> dict:
     else:
         times, scenario = None, load_scenario(args.scenario)
         default_name = f"{scenario.name}-seed{seed}-n{args.runs}"
+    environment = _environment(args) if kind == "flights" else None
+    if environment is not None:
+        default_name = f"{scenario.name}-flight-day-seed{seed}-n{args.runs}"
     return {"scenario": scenario, "disp": load_dispersions(args.dispersions), "seed": seed,
             "runs": args.runs,
             "table_path": Path(args.table) if args.table else default_table_path(),
             "out": Path(args.out) if args.out else Path(DEFAULT_OUT) / default_name,
-            "times": times}
+            "times": times, "environment": environment}
+
+
+_FLIGHT_DAY_OPTIONS = ("site", "month", "lag_s", "mode", "lcc")
+
+
+def _environment(args: argparse.Namespace) -> dict | None:
+    """The flight-day environment of ``vega mc run`` (None: the thesis box), its files loaded
+    and checked now; a flight-day option without ``--environment flight-day`` is refused."""
+    from vega_signoff.flight_day import FLIGHT_DAY, environment_settings
+
+    if getattr(args, "environment", None) != FLIGHT_DAY:
+        given = [o for o in _FLIGHT_DAY_OPTIONS if getattr(args, o, None) is not None]
+        if given:
+            raise BadArgument(f"--{given[0].replace('_', '-')} needs --environment flight-day")
+        return None
+    return environment_settings(args.site, args.month, args.lag_s, args.mode, args.lcc)
 
 
 def _fly(args: argparse.Namespace, c: dict, kind: str) -> tuple[list[dict], dict]:
@@ -171,9 +201,19 @@ def _fly(args: argparse.Namespace, c: dict, kind: str) -> tuple[list[dict], dict
     rows = run_campaign(c["scenario"], c["disp"], runs=c["runs"], seed=c["seed"], out=c["out"],
                         table_path=c["table_path"].resolve(), workers=args.workers,
                         scheduler=args.scheduler, resume=bool(args.resume), kind=kind,
-                        times_s=c["times"], batch=getattr(args, "batch", DEFAULT_BATCH))
+                        times_s=c["times"], batch=getattr(args, "batch", DEFAULT_BATCH),
+                        environment=c.get("environment"), task=_task(c.get("environment")))
     write_results(c["out"], rows)
     return rows, json.loads((c["out"] / "campaign.json").read_text())
+
+
+def _task(environment: dict | None):
+    """The Dask task of a campaign in ``environment`` (None: the thesis box's own)."""
+    if environment is None:
+        return None
+    from vega_signoff.flight_day import fly_flight_day_batch
+
+    return fly_flight_day_batch
 
 
 def _write_summary(out, summary: dict, markdown: str, files: str) -> int:
@@ -181,6 +221,9 @@ def _write_summary(out, summary: dict, markdown: str, files: str) -> int:
     (out / "summary.md").write_text(markdown)
     print(markdown, end="")
     print(f"vega mc: {out}/ ({files})")
+    if "flight_day" in summary:     # nothing is shown when every sample was scrubbed
+        fd = summary["flight_day"]
+        return 0 if fd["failed"] == 0 and fd["n"] > 0 else 1
     return 0 if summary["passed"] == summary["runs"] else 1
 
 
@@ -201,10 +244,23 @@ def _run(args: argparse.Namespace) -> int:
     scenario_reference(c["scenario"])                 # likewise the guidance reference
     rows, inputs = _fly(args, c, "flights")
     summary = summarise(rows, inputs, wall_s=time.monotonic() - t0)
-    plot_campaign(c["out"], read_rows(c["out"]), summary)
-    return _write_summary(c["out"], summary, summary_markdown(summary),
-                          "results.parquet, summary.json, summary.md, histograms.png, "
-                          "sensitivity_q_alpha.png, q_alpha_band.png")
+    markdown = summary_markdown(summary)
+    files = ("results.parquet, summary.json, summary.md, histograms.png, "
+             "sensitivity_q_alpha.png, q_alpha_band.png")
+    not_dispersed: tuple = ()
+    if inputs.get("environment") is not None:
+        from vega_signoff.flight_day import (NOT_DISPERSED, flight_day_markdown,
+                                             plot_flight_day, summarise_flight_day)
+
+        summary.update(summarise_flight_day(rows))
+        summary["environment"] = {k: v for k, v in inputs["environment"].items()
+                                  if not k.endswith("_yaml")}
+        markdown += flight_day_markdown(summary, summary["environment"])
+        plot_flight_day(c["out"], rows)
+        files += ", availability_by_month.png, q_alpha_allowable.png"
+        not_dispersed = NOT_DISPERSED
+    plot_campaign(c["out"], read_rows(c["out"]), summary, not_dispersed)
+    return _write_summary(c["out"], summary, markdown, files)
 
 
 def _rerun(args: argparse.Namespace) -> int:
@@ -232,7 +288,18 @@ def _rerun(args: argparse.Namespace) -> int:
     row = _json_object(row_path, "campaign sample row")
     base = parse_scenario(inputs["scenario_yaml"], f"{path}: scenario_yaml")
     disp = parse_dispersions(inputs["dispersions_yaml"], inputs["dispersions_path"])
-    scenario, _ = sample_scenario(base, disp, inputs["seed"], args.sample)
+    extra = None
+    if inputs.get("environment") is not None:   # the flight day: the campaign's own reference
+        from vega_signoff.flight_day import flight_day_metrics, scenario_path
+
+        recorded = scenario_path(camp, args.sample)
+        if not recorded.is_file():
+            raise BadArgument(f"--sample {args.sample}: {recorded} is missing (the scenario "
+                              f"the flight-day sample flew)")
+        scenario = parse_scenario(recorded.read_text(), str(recorded))
+        extra = flight_day_metrics
+    else:
+        scenario, _ = sample_scenario(base, disp, inputs["seed"], args.sample)
     out = Path(args.out) if args.out else camp / "reruns"
     out.mkdir(parents=True, exist_ok=True)
     scenario_file = out / f"{scenario.name}.yaml"
@@ -244,7 +311,10 @@ def _rerun(args: argparse.Namespace) -> int:
     if status not in (0, 1) or not bag_dir.is_dir():
         print(f"vega mc rerun: the SIL run ended with exit status {status}; no comparison")
         return status if status else 1
-    got = flight_metrics(bag_result(bagio.read_run_bag(bag_dir)))
+    result = bag_result(bagio.read_run_bag(bag_dir))
+    got = flight_metrics(result)
+    if extra is not None:
+        got.update(extra(result))
     # compared as JSON text: NaN (an empty Mach bin) equals NaN, floats to the last bit
     differ = [k for k, v in got.items() if json.dumps(v) != json.dumps(row[k])]
     for k in differ:
@@ -346,6 +416,25 @@ def register(subparsers) -> None:
                           f"(1..{MAX_BATCH}; default %(default)s; 1: one flight per task, the "
                           f"per-flight path; the rows are the same either way, also when "
                           f"resuming)")
+    run.add_argument("--environment", choices=("thesis-box", "flight-day"),
+                     default="thesis-box",
+                     help="wind environment: thesis-box (default: the thesis profile scaled "
+                          "and shifted, the campaign vega verify signs off) or flight-day "
+                          "(the site's statistical winds, guidance re-biased per sample, "
+                          "launch commit criterion)")
+    run.add_argument("--site", default=None, metavar="FILE",
+                     help="flight-day: wind site file (default: the shipped Kourou file)")
+    run.add_argument("--month", type=_positive_int(12), default=None, metavar="M",
+                     help="flight-day: every sample in month M (1..12; default: the 12 "
+                          "months in turn)")
+    run.add_argument("--lag-s", type=float, default=None, metavar="L",
+                     help="flight-day: sounding-to-lift-off lag [s] (default: the site "
+                          "model's, 5400)")
+    run.add_argument("--mode", choices=("full_speed", "in_plane"), default=None,
+                     help="flight-day: flight-plane mode of the wind (default full_speed)")
+    run.add_argument("--lcc", default=None, metavar="FILE",
+                     help="flight-day: launch commit criterion file (default: the shipped "
+                          "offline/vega_signoff/data/lcc.yaml)")
     run.set_defaults(func=_run)
     margins = actions.add_parser(
         "margins", help="margins of the flown controller over dispersed plants",
