@@ -31,7 +31,10 @@ controller interpolated as the runtime does):
     ``disk_margins`` on rational loops (tests/synthesis/test_robust.py).
 
 The worst case found is analysed with the classical margins of :func:`.margins.analyse_loop`
-(rigid-body GM/PM, bending criteria) on the fine grid.
+(rigid-body GM/PM, bending criteria) on the fine grid, each margin with the frequency of its
+crossover; the phase margin is the distance of the phase from −180° at the closest gain
+crossover at or above the frozen-time floor (:data:`vega_loops.margins.PM_FLOOR_RADPS`,
+docs/FLIGHT_DESIGN.md §3.1).
 """
 
 from __future__ import annotations
@@ -257,10 +260,19 @@ def _fine(pt: RobustPoint, dev: Mapping[str, float]) -> dict:
     return row
 
 
-_FINE_KEYS = ("gm_low_db", "gm_high_db", "pm_deg", "b1_peak_db", "b1_pm_deg", "b1_gm_db",
-              "b2_peak_db", "b2_pm_deg", "b2_gm_db", "bending_1_ok", "bending_2_ok",
-              "max_abs_eig", "n_unstable", "disk_alpha", "disk_gm_db", "disk_pm_deg",
-              "disk_w_radps")
+_FINE_KEYS = ("gm_low_db", "w_gm_low_radps", "gm_high_db", "w_gm_high_radps", "pm_deg",
+              "w_pm_radps", "pm_signed_deg", "pm_low_deg", "w_pm_low_radps",
+              "n_low_gain_crossovers", "b1_peak_db", "b1_w_peak_radps", "b1_pm_deg",
+              "b1_w_pm_radps", "b1_gm_db", "b1_w_gm_radps", "b2_peak_db", "b2_w_peak_radps",
+              "b2_pm_deg", "b2_w_pm_radps", "b2_gm_db", "b2_w_gm_radps", "bending_1_ok",
+              "bending_2_ok", "max_abs_eig", "n_unstable", "disk_alpha", "disk_gm_db",
+              "disk_pm_deg", "disk_w_radps")
+"""The figures of one plant kept in a row (``nominal_`` / ``worst_`` + key), each margin followed
+by the frequency of the crossover it belongs to (:func:`vega_loops.margins.extract_margins`):
+``pm_deg`` is the distance of the phase from −180° at the closest gain crossover at or above
+:data:`vega_loops.margins.PM_FLOOR_RADPS` (``pm_signed_deg`` its side), ``pm_low_deg`` the same
+below the floor (the drift loop's; reported, not a criterion); ``disk_w_radps`` is the
+frequency where the disk margin is set."""
 
 
 def _mu_fields(table, context, t_s: float, uset) -> dict:
@@ -269,11 +281,16 @@ def _mu_fields(table, context, t_s: float, uset) -> dict:
     from vega_analysis.mu_analysis import mu_at_time
 
     r = mu_at_time(table, context, t_s, uset)
-    fit = r["fit_error"]
+    fit, whole = r["fit_error"], r["whole"]
     return {"mu_upper": r["mu_peak"], "mu_upper_w_radps": r["w_peak_radps"],
             "mu_centre_stable": r["centre_stable"], "mu_fit_loop_rel": fit["loop_rel"],
             "mu_fit_matrix_rel": fit["matrix_rel"], "mu_aliasing_rel": r["aliasing_centre_rel"],
             "mu_blocks": r["n_blocks"], "mu_fallbacks": r["n_fallback"],
+            # the whole-matrix ab13md calls: made, whose certificate was the smaller, stopped
+            # at the wall-clock limit (there the reduced call's certificate stands, and the
+            # bound depends on the machine's speed), and their ab13md time
+            "mu_whole_calls": whole["n_calls"], "mu_whole_won": whole["n_better"],
+            "mu_whole_stopped": whole["n_timeout"], "mu_whole_time_s": whole["time_s"],
             "mu_time_s": r["time_s"]["total"],
             "mu_curve": {"w_radps": [float(x) for x in r["w_radps"]],
                          "mu_upper": [float(x) for x in r["mu_upper"]]}}
@@ -352,6 +369,9 @@ def sweep(table_path: str, times: Sequence[float], workers: int = 2, seed: int =
     def report(row):
         if progress is not None:
             mu_txt = f", mu <= {row['mu_upper']:.3f}" if "mu_upper" in row else ""
+            if row.get("mu_whole_stopped"):
+                mu_txt += (f" ({row['mu_whole_stopped']} of {row['mu_whole_calls']} whole-matrix "
+                           "ab13md calls stopped)")
             progress(f"robust: {len(rows)}/{len(tasks)} t = {row['t_s']:g} s: worst disk "
                      f"margin {row['worst_disk_alpha']:.3f} (max |z| {row['max_radius']:.5f})"
                      f"{mu_txt}, {_time.perf_counter() - start:.0f} s elapsed")
@@ -377,15 +397,28 @@ def sweep(table_path: str, times: Sequence[float], workers: int = 2, seed: int =
 SUMMARY_KEYS = ("nominal_disk_alpha", "worst_disk_alpha", "worst_disk_gm_db", "worst_disk_pm_deg",
                 "worst_gm_low_db", "worst_gm_high_db", "worst_pm_deg", "max_radius")
 
+_FREQUENCY_OF = {"nominal_disk_alpha": "nominal_disk_w_radps",
+                 "worst_disk_alpha": "worst_disk_w_radps",
+                 "worst_disk_gm_db": "worst_disk_w_radps",
+                 "worst_disk_pm_deg": "worst_disk_w_radps",
+                 "worst_gm_low_db": "worst_w_gm_low_radps",
+                 "worst_gm_high_db": "worst_w_gm_high_radps", "worst_pm_deg": "worst_w_pm_radps"}
+"""Summary figure -> the row key of the frequency it belongs to (its crossover; for a disk
+margin the frequency where it is set)."""
+
 
 def summarise(rows: Sequence[Mapping]) -> dict:
-    """Worst value and where per figure, and the verdicts of the requirement (robust stability,
-    bending criteria over the dispersed set; docs/ROBUST_ANALYSIS.md §1)."""
+    """Worst value, time and frequency (``w_radps``: the crossover of a margin) per figure, the
+    verdicts of the requirement (robust stability, bending criteria over the dispersed set;
+    docs/ROBUST_ANALYSIS.md §1) and, with the μ upper bound, its whole-matrix ab13md calls
+    (``mu_whole_*``: made, won, stopped at the wall-clock limit and at which times, time)."""
     out: dict = {"n_times": len(rows)}
     for key in SUMMARY_KEYS:
         pick = max if key == "max_radius" else min
         r = pick(rows, key=lambda row: row[key])
         out[key] = {"value": r[key], "t_s": r["t_s"]}
+        if key in _FREQUENCY_OF:
+            out[key]["w_radps"] = r.get(_FREQUENCY_OF[key])
     unstable = [r["t_s"] for r in rows if r["max_radius"] > 1.0 + _UNSTABLE_EPS]
     bend = [r["t_s"] for r in rows if not (r["worst_bending_1_ok"] and r["worst_bending_2_ok"])]
     out["unstable_times_s"] = unstable
@@ -408,6 +441,9 @@ def summarise(rows: Sequence[Mapping]) -> dict:
                           "t_s": low["t_s"]} if low else None)
         # robust stability proved by the bound (to its fit-error cover, a sampled bound)
         out["mu_proves_stability"] = out["mu_upper_below_1_times"] == len(rows)
+        for key in ("mu_whole_calls", "mu_whole_won", "mu_whole_stopped", "mu_whole_time_s"):
+            out[key] = sum(r[key] for r in ups)
+        out["mu_whole_stopped_times_s"] = [r["t_s"] for r in ups if r["mu_whole_stopped"]]
     else:
         out["mu_upper"] = None
     out["robust_stability_pass"] = not unstable

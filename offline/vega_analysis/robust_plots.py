@@ -2,7 +2,8 @@
 
 * ``robust_over_time.png`` — per frozen time: the disk margin α of the nominal plant and of
   the worst case found (with the disk phase margin it means), the rigid-body classical margins
-  of the worst case, and the μ bounds (lower: the destabilising scale along the worst-case ray;
+  of the worst case (PM: the distance of the phase from −180°; the crossover frequencies are in
+  robust.csv), and the μ bounds (lower: the destabilising scale along the worst-case ray;
   upper: the LFT + ab13md bound) against 1;
 * ``mu_max_q.png`` — the μ upper bound over frequency at the computed time nearest max-Q (and
   at every other computed time, faint), the lower bound of that time as a level;
@@ -52,7 +53,8 @@ def plot_robust_over_time(path, rows: Sequence[Mapping]) -> Path:
     ax = axes[1]
     ax.plot(t, _col(rows, "worst_gm_low_db"), "C0", label="GM low (reduction), worst case")
     ax.plot(t, _col(rows, "worst_gm_high_db"), "C1", label="GM high (increase), worst case")
-    ax.plot(t, _col(rows, "worst_pm_deg") / 5.0, "C2", label="PM / 5, worst case [deg/5]")
+    ax.plot(t, _col(rows, "worst_pm_deg") / 5.0, "C2",
+            label="PM (distance of the phase from −180°) / 5, worst case [deg/5]")
     ax.axhline(0.0, color="k", lw=0.5)
     ax.set_ylabel("rigid-body margins of the worst case [dB]")
     ax.set_ylim(-10, 30)

@@ -50,7 +50,9 @@ rigid-body crossover, ≈ 2 rad/s) than where it is fast (gain increase: the pha
 ≈ 6 rad/s); the rate limit, a nonlinear gain loss, works the other way. The
 frequency-domain columns (``fd_*``) are the smallest margins of the nominal frozen loops at
 the flight times of ``vega margins``' 0.5 s grid inside the window (continuous-equivalent
-loop, :func:`vega_loops.margins.frozen_loop`).
+loop, :func:`vega_loops.margins.frozen_loop`), each with its time and the frequency of the
+crossover it belongs to (``fd_*_w_radps``); the phase margin is the distance of the phase from
+−180° at the closest gain crossover at or above :data:`vega_loops.margins.PM_FLOOR_RADPS`.
 """
 
 from __future__ import annotations
@@ -483,10 +485,13 @@ def frequency_margins(table, segment: Segment, scenario="nominal", context=None,
     Returns
     -------
     dict
-        ``fd_gm_up_db`` (``gm_high_db``), ``fd_gm_down_db`` (``gm_low_db``), ``fd_pm_deg``,
-        ``fd_dm_ms`` (:func:`delay_margin_ms`), each the minimum over the times, with the time
-        of the minimum (``*_t_s``); ``fd_dm_w_radps`` (the crossover of ``fd_dm_ms``: the
-        rigid-body one near 2 rad/s, or one above it); ``fd_times`` (how many times).
+        ``fd_gm_up_db`` (``gm_high_db``), ``fd_gm_down_db`` (``gm_low_db``), ``fd_pm_deg``
+        (``pm_deg``: the distance of the phase from −180°), ``fd_dm_ms``
+        (:func:`delay_margin_ms`), each the minimum over the times, with the time of the
+        minimum (``*_t_s``) and the frequency of its crossover (``*_w_radps``: the phase
+        crossover of a gain margin, the gain crossover of the phase and delay margins — for
+        the delay margin the rigid-body one near 2 rad/s, or one above it); ``fd_times`` (how
+        many times).
     """
     from vega_model.parameters import default_context
 
@@ -505,15 +510,16 @@ def frequency_margins(table, segment: Segment, scenario="nominal", context=None,
         loop = M.frozen_loop(data, p, act, tau)
         m = M.extract_margins(data.w_radps, loop.L, loop.omega_modes)
         dm_ms, dm_w = delay_margin_ms(data.w_radps, loop.L)
-        per_time.append((t, {"fd_gm_up": m["gm_high_db"], "fd_gm_down": m["gm_low_db"],
-                             "fd_pm": m["pm_deg"], "fd_dm": dm_ms, "fd_dm_w": dm_w}))
+        per_time.append((t, {"fd_gm_up": m["gm_high_db"], "fd_gm_up_w": m["w_gm_high_radps"],
+                             "fd_gm_down": m["gm_low_db"], "fd_gm_down_w": m["w_gm_low_radps"],
+                             "fd_pm": m["pm_deg"], "fd_pm_w": m["w_pm_radps"],
+                             "fd_dm": dm_ms, "fd_dm_w": dm_w}))
     out: dict = {}
     for stem, unit in (("fd_gm_up", "db"), ("fd_gm_down", "db"), ("fd_pm", "deg"),
                        ("fd_dm", "ms")):
         t, values = min(per_time, key=lambda item: item[1][stem])
         out[f"{stem}_{unit}"], out[f"{stem}_t_s"] = float(values[stem]), t
-        if stem == "fd_dm":
-            out["fd_dm_w_radps"] = float(values["fd_dm_w"])
+        out[f"{stem}_w_radps"] = float(values[f"{stem}_w"])
     out["fd_times"] = len(times)
     return out
 
@@ -578,8 +584,13 @@ def _task(args):
 def _describe(kind: str, res: Mapping) -> str:
     """One line about a finished task (:func:`time_domain_margins`' progress)."""
     if kind == "frequency":
-        return (f"frequency domain GM +{res['fd_gm_up_db']:.2f}/-{res['fd_gm_down_db']:.2f} dB,"
-                f" PM {res['fd_pm_deg']:.1f} deg, DM {res['fd_dm_ms']:.0f} ms "
+        def at(stem):
+            w = res[f"{stem}_w_radps"]
+            return f" at {w:.3g} rad/s" if math.isfinite(w) else ""
+
+        return (f"frequency domain GM +{res['fd_gm_up_db']:.2f} dB{at('fd_gm_up')}, "
+                f"-{res['fd_gm_down_db']:.2f} dB{at('fd_gm_down')}, PM {res['fd_pm_deg']:.1f} "
+                f"deg{at('fd_pm')}, DM {res['fd_dm_ms']:.0f} ms{at('fd_dm')} "
                 f"({res['fd_times']} frozen times)")
     if math.isnan(res["margin"]):
         found = f"unperturbed flight unstable ({res['failed']})"
@@ -685,11 +696,14 @@ CSV_COLUMNS = (
     "gm_up_db", "gm_up_unstable_db", "gm_up_found", "gm_up_failed", "gm_up_flights",
     "gm_down_db", "gm_down_unstable_db", "gm_down_found", "gm_down_failed", "gm_down_flights",
     "dm_ms", "dm_unstable_ms", "dm_found", "dm_failed", "dm_flights", "flights",
-    "fd_gm_up_db", "fd_gm_up_t_s", "fd_gm_down_db", "fd_gm_down_t_s", "fd_pm_deg",
-    "fd_pm_t_s", "fd_dm_ms", "fd_dm_t_s", "fd_dm_w_radps", "source")
-"""time_margins.csv columns; the unit is the name's suffix (_db, _ms, _deg, _s); margins are
-the largest perturbation flown stable, ``*_unstable_*`` the smallest flown unstable (inf:
-none), ``fd_*`` the smallest frequency-domain margin in the window and its time."""
+    "fd_gm_up_db", "fd_gm_up_t_s", "fd_gm_up_w_radps", "fd_gm_down_db", "fd_gm_down_t_s",
+    "fd_gm_down_w_radps", "fd_pm_deg", "fd_pm_t_s", "fd_pm_w_radps", "fd_dm_ms", "fd_dm_t_s",
+    "fd_dm_w_radps", "source")
+"""time_margins.csv columns; the unit is the name's suffix (_db, _ms, _deg, _s, _radps);
+margins are the largest perturbation flown stable, ``*_unstable_*`` the smallest flown unstable
+(inf: none), ``fd_*`` the smallest frequency-domain margin in the window, its time and the
+frequency of its crossover (``fd_pm_deg``: the distance of the phase from −180°; nan: no
+crossover)."""
 
 
 def _csv_field(value) -> str:
@@ -725,14 +739,20 @@ def _cell(row: Mapping, stem: str, unit: str, digits: int) -> str:
 
 def markdown(rows: Sequence[Mapping]) -> str:
     """A markdown table of :func:`time_domain_margins` rows: per segment the time-domain
-    margins beside the smallest frequency-domain ones in the window."""
-    lines = ["| segment | window [s] | GM up [dB] time / freq | GM down [dB] time / freq | "
-             "delay margin [ms] time / freq | PM [deg] freq | flights |",
+    margins beside the smallest frequency-domain ones in the window ("freq"), each of those
+    at its crossover (``@ω`` [rad/s])."""
+    lines = ["| segment | window [s] | GM up [dB] time / freq @rad/s | GM down [dB] time / freq "
+             "@rad/s | delay margin [ms] time / freq @rad/s | PM (distance) [deg] freq @rad/s "
+             "| flights |",
              "|---|---|---|---|---|---|---|"]
 
     def fd(row, key, digits):
         value = row.get(key)
-        return "–" if value is None else f"{value:.{digits}f}"
+        if value is None:
+            return "–"
+        w = row.get(key.rsplit("_", 1)[0] + "_w_radps")
+        at = "" if w is None or not math.isfinite(w) else f" @{w:.3g}"
+        return f"{value:.{digits}f}{at}"
 
     for r in rows:
         lines.append(

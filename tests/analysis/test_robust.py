@@ -89,6 +89,15 @@ def test_worst_case_is_no_better_than_any_corner_or_random_plant(point, worst):
     assert w["alpha"] <= min(alphas)
     nominal = _alpha_of(point, point.uset.nominal())[1]
     assert w["alpha"] < nominal
+    # the worst plant's margins each name their crossover: the frequencies of its exact
+    # sampled-data loop recomputed here, the PM the distance from −180° at or above the floor
+    row = R._fine(point, w["deviations"])
+    loop = M.frozen_loop(point.data, *M.corner_plant(point.context, 50.0, w["deviations"]))
+    ref = M.extract_margins(point.data.w_radps, loop.L_d, loop.omega_modes)
+    for key in ("gm_low_db", "gm_high_db", "pm_deg"):
+        assert row[M.FREQUENCY_OF[key]] == pytest.approx(ref[M.FREQUENCY_OF[key]], rel=1e-12)
+    assert row["pm_deg"] == pytest.approx(abs(row["pm_signed_deg"]))
+    assert row["w_pm_radps"] >= M.PM_FLOOR_RADPS
 
 
 @pytest.mark.slow
@@ -124,6 +133,37 @@ def test_fine_analysis_of_the_nominal_plant_agrees_with_vega_margins(point):
                                                      point.uset.nominal()), nyquist=False)
     for key in ("gm_low_db", "gm_high_db", "pm_deg"):
         assert row[key] == pytest.approx(ref[f"sd_{key}"], abs=1e-9)
+        # and the crossover each belongs to
+        assert row[M.FREQUENCY_OF[key]] == pytest.approx(ref[f"sd_{M.FREQUENCY_OF[key]}"],
+                                                          rel=1e-12)
+    assert set(R._FINE_KEYS) <= set(row)
     assert row["n_unstable"] == 0 and 0.0 < row["disk_alpha"] < 2.0
     assert row["disk_gm_db"] <= min(row["gm_low_db"], row["gm_high_db"]) + 1e-9
     assert row["disk_pm_deg"] <= row["pm_deg"] + 1e-9
+
+
+def _row(t_s, **figures):
+    """A hand-made row of :func:`R.analyse_time` (only what :func:`R.summarise` reads)."""
+    row = {"t_s": t_s, "max_radius": 0.999, "worst_bending_1_ok": True,
+           "worst_bending_2_ok": True, "mu_lower": 0.8, "mu_centre_stable": True,
+           "mu_fit_loop_rel": 0.1, "mu_upper_w_radps": 0.4}
+    for key in R.SUMMARY_KEYS:
+        row.setdefault(key, 1.0)
+    row.update(figures)
+    return row
+
+
+def test_summary_names_the_crossover_of_each_worst_margin_and_counts_whole_calls():
+    rows = [_row(46.0, worst_pm_deg=20.2, worst_w_pm_radps=0.96, worst_gm_low_db=2.0,
+                 worst_w_gm_low_radps=0.3, mu_upper=1.10, mu_whole_calls=6, mu_whole_won=0,
+                 mu_whole_stopped=0, mu_whole_time_s=7.3),
+            _row(48.0, worst_pm_deg=14.9, worst_w_pm_radps=8.25, worst_gm_low_db=3.0,
+                 worst_w_gm_low_radps=0.5, mu_upper=0.91, mu_whole_calls=18, mu_whole_won=3,
+                 mu_whole_stopped=2, mu_whole_time_s=31.0)]
+    s = R.summarise(rows)
+    assert s["worst_pm_deg"] == {"value": 14.9, "t_s": 48.0, "w_radps": 8.25}
+    assert s["worst_gm_low_db"] == {"value": 2.0, "t_s": 46.0, "w_radps": 0.3}
+    assert "w_radps" not in s["max_radius"]
+    assert (s["mu_whole_calls"], s["mu_whole_won"], s["mu_whole_stopped"]) == (24, 3, 2)
+    assert s["mu_whole_time_s"] == pytest.approx(38.3)
+    assert s["mu_whole_stopped_times_s"] == [48.0]

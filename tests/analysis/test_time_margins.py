@@ -185,7 +185,7 @@ def test_gain_margin_up_brackets_the_frequency_domain_one(table, context):
 
 
 @pytest.mark.slow
-def test_delay_margin_and_outputs(table, tmp_path):
+def test_delay_margin_and_outputs(table, context, tmp_path):
     """The whole API on one short max-Q window, delay only, coarse tolerance: the time-domain
     delay margin is not below the frozen one, the rows, CSV and markdown carry it, and the
     progress callback hears once per finished task."""
@@ -201,14 +201,28 @@ def test_delay_margin_and_outputs(table, tmp_path):
     assert 150.0 < row["fd_dm_ms"] < 400.0            # the shipped design: 180–290 ms at max-Q
     assert row["dm_ms"] >= row["fd_dm_ms"] - 50.0, row
     assert "gm_up_db" not in row and row["t_end_s"] == 50.0 + T.SETTLE_S
+    # each frequency-domain margin names its crossover: the frozen loop at the margin's time
+    # recomputed here gives the same frequency (the PM: the distance from −180° at or above
+    # the frozen-time floor)
+    for stem, key in (("fd_gm_up", "gm_high_db"), ("fd_gm_down", "gm_low_db"),
+                      ("fd_pm", "pm_deg")):
+        t = row[f"{stem}_t_s"]
+        data = M.loop_data(table, context, t)
+        loop = M.frozen_loop(data, *M.corner_plant(context, t, {}))
+        ref = M.extract_margins(data.w_radps, loop.L, loop.omega_modes)
+        assert row[f"{stem}_w_radps"] == pytest.approx(ref[M.FREQUENCY_OF[key]], rel=1e-12)
+    assert row["fd_pm_w_radps"] >= M.PM_FLOOR_RADPS
     path = tmp_path / "time_margins.csv"
     T.write_csv(path, rows)
     with open(path, newline="", encoding="utf-8") as f:
         back = list(csv.DictReader(f))
     assert [r["segment"] for r in back] == ["max-Q test"]
     assert float(back[0]["dm_ms"]) == row["dm_ms"] and back[0]["gm_up_db"] == ""
+    assert float(back[0]["fd_pm_w_radps"]) == pytest.approx(row["fd_pm_w_radps"], rel=1e-5)
     table_md = T.markdown(rows)
-    assert f"| {row['dm_ms']:.0f} / {row['fd_dm_ms']:.0f} |" in table_md
+    assert (f"| {row['dm_ms']:.0f} / {row['fd_dm_ms']:.0f} @{row['fd_dm_w_radps']:.3g} |"
+            in table_md)
+    assert f"| {row['fd_pm_deg']:.1f} @{row['fd_pm_w_radps']:.3g} |" in table_md
 
 
 @pytest.mark.slow

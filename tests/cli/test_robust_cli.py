@@ -50,6 +50,36 @@ def test_one_time_end_to_end(tmp_path, capsys):
     assert f"mu upper bound peak {row['mu_upper']:.3f} at 50 s" in out
     assert "mu_curve" not in header
     assert Path(tmp_path / "mu_max_q.png").stat().st_size > 10_000
+    # every worst-case rigid margin names its crossover: the worst plant's exact sampled-data
+    # loop recomputed here gives the same frequencies, the PM is the distance from −180° at a
+    # crossover at or above the frozen-time floor; the table prints them
+    from vega_loops import margins as M
+    from vega_gnc.controller_table import default_table_path, load_controller_table
+    from vega_model.parameters import default_context
+
+    context = default_context()
+    ld = M.loop_data(load_controller_table(default_table_path()), context, 50.0)
+    loop = M.frozen_loop(ld, *M.corner_plant(context, 50.0, row["worst_deviations"]))
+    ref = M.extract_margins(ld.w_radps, loop.L_d, loop.omega_modes)
+    for key in ("gm_low_db", "gm_high_db", "pm_deg"):
+        w_key = M.FREQUENCY_OF[key]
+        assert row[f"worst_{key}"] == pytest.approx(ref[key], rel=1e-9)
+        assert row[f"worst_{w_key}"] == pytest.approx(ref[w_key], rel=1e-9)
+        assert data["summary"][f"worst_{key}"]["w_radps"] == row[f"worst_{w_key}"]
+        assert f"worst_{w_key}" in header and f"nominal_{w_key}" in header
+    assert row["worst_pm_deg"] == pytest.approx(abs(row["worst_pm_signed_deg"]))
+    assert row["worst_w_pm_radps"] >= M.PM_FLOOR_RADPS
+    assert f"{row['worst_pm_deg']:.1f}@{row['worst_w_pm_radps']:<6.3g}" in out
+    assert "PM (distance from -180 deg)" in out
+    # the μ bound's whole-matrix ab13md calls, per row and in the summary and the table
+    calls, won, stopped = (row[f"mu_whole_{k}"] for k in ("calls", "won", "stopped"))
+    assert calls >= won >= 0 and calls >= stopped >= 0 and calls > 0
+    assert row["mu_whole_time_s"] >= 0.0 and "mu_whole_calls" in header
+    summary = data["summary"]
+    assert (summary["mu_whole_calls"], summary["mu_whole_won"],
+            summary["mu_whole_stopped"]) == (calls, won, stopped)
+    assert summary["mu_whole_stopped_times_s"] == ([50.0] if stopped else [])
+    assert f"mu whole-matrix ab13md calls: {calls} made, {won} gave the smaller" in out
 
 
 @pytest.mark.slow
@@ -59,4 +89,5 @@ def test_no_mu_skips_the_upper_bound(tmp_path, capsys):
     assert code == 0, out
     row = json.loads((tmp_path / "robust.json").read_text())["rows"][0]
     assert "mu_upper" not in row and "mu upper bound: not computed (--no-mu)" in out
+    assert "mu_whole_calls" not in row and "whole-matrix" not in out
     assert not (tmp_path / "mu_max_q.png").exists()

@@ -59,11 +59,17 @@ def test_the_default_out_is_a_new_directory_per_run_under_bags():
 def _summary(unstable=0, b1_fail=0, b2_fail=0):
     family = {"stability": {"n_unstable_loops": unstable},
               "bending_1": {"n_fail_times": b1_fail, "fail_intervals_s": [[43.0, 43.0]] * b1_fail},
-              "bending_2": {"n_fail_times": b2_fail, "fail_intervals_s": []}}
-    nominal = {k: {"worst": w, "t_s": 41.0} for k, w in (
-        ("gm_low_db", 6.06), ("gm_high_db", 6.08), ("pm_deg", 30.02), ("bending_1", -10.6),
-        ("bending_2", -26.4))}
+              "bending_2": {"n_fail_times": b2_fail, "fail_intervals_s": []},
+              "pm_deg": {"worst": 14.91, "t_s": 50.0, "corner": 567, "family": "bending",
+                         "w_radps": 8.25},
+              "pm_below_floor": {"floor_radps": 0.15, "n_loops": 21718, "worst": 30.7,
+                                 "t_s": 46.0, "corner": 287, "w_radps": 0.020}}
+    nominal = {k: {"worst": w, "t_s": 41.0, "corner": 0, "w_radps": wc} for k, w, wc in (
+        ("gm_low_db", 6.06, 0.92), ("gm_high_db", 6.08, 5.1), ("pm_deg", 30.02, 1.83))}
+    nominal.update({k: {"worst": w, "t_s": 41.0, "corner": 0, "w_peak_radps": wc}
+                    for k, w, wc in (("bending_1", -10.6, 33.0), ("bending_2", -26.4, 90.0))})
     nominal["stability"] = {"n_unstable_loops": 0}
+    nominal["pm_below_floor"] = {"floor_radps": 0.15, "n_loops": 0, "worst": None}
     return {"dispersed": {"families": {"all": {"requirements": family}}}, "nominal": nominal}
 
 
@@ -73,6 +79,17 @@ def test_dispersed_figures_from_a_hand_summary():
     assert f["bending_miss_intervals_s"]["bending_1"] == [[43.0, 43.0]]
     assert f["nominal_worst"]["pm_deg"] == [30.02, 41.0]
     assert V.dispersed_figures(_summary(b2_fail=3))["bending_miss_times"] == 3
+    # reported with each worst margin: its crossover (a bending band: its peak), the dispersed
+    # worst PM (distance) with corner, time and frequency, the crossovers below the floor
+    assert f["nominal_worst_w_radps"] == {"gm_low_db": 0.92, "gm_high_db": 5.1, "pm_deg": 1.83,
+                                          "bending_1": 33.0, "bending_2": 90.0}
+    assert f["dispersed_worst"]["pm_deg"] == {"value": 14.91, "t_s": 50.0, "corner": 567,
+                                              "w_radps": 8.25}
+    assert f["dispersed_worst"]["gm_low_db"] is None          # not in the hand summary
+    assert f["pm_below_floor"]["dispersed"] == {"floor_radps": 0.15, "n_loops": 21718,
+                                                "value": 30.7, "t_s": 46.0, "corner": 287,
+                                                "w_radps": 0.020}
+    assert f["pm_below_floor"]["nominal"] == {"floor_radps": 0.15, "n_loops": 0, "value": None}
 
 
 def test_campaign_failures_counted_per_requirement_from_a_hand_summary():
@@ -109,6 +126,21 @@ def test_a_short_real_sign_off_reports_and_gates(tmp_path, capsys):
     assert margins["figures"]["bending_miss_times"] == 0
     gm_low, t = margins["figures"]["nominal_worst"]["gm_low_db"]
     assert t == 43.0 and 6.0 <= gm_low < 8.0           # the shipped table at max-Q: 6.30 dB
+    # reported, not gated: the crossover of each worst margin, the nominal ones as the nominal
+    # loop at 43 s recomputed gives them; the dispersed worst PM (a distance) with its corner
+    from vega_gnc.controller_table import load_controller_table
+    from vega_loops import margins as M
+    from vega_model.parameters import default_context
+
+    ref = M.analyse_time(load_controller_table(SHIPPED), default_context(), 43.0, [(0, {})],
+                         nyquist=False)[0]
+    w = margins["figures"]["nominal_worst_w_radps"]
+    for key in ("gm_low_db", "gm_high_db", "pm_deg"):
+        assert w[key] == pytest.approx(ref[M.FREQUENCY_OF[key]], rel=1e-9)
+    pm = margins["figures"]["dispersed_worst"]["pm_deg"]
+    assert pm["t_s"] == 43.0 and 0 <= pm["corner"] and 0.0 < pm["value"] <= 180.0
+    assert pm["w_radps"] >= M.PM_FLOOR_RADPS
+    assert margins["figures"]["pm_below_floor"]["dispersed"]["floor_radps"] == M.PM_FLOOR_RADPS
     assert mc["figures"]["runs"] == 2 and mc["figures"]["unstable"] == 0
     assert mc["figures"]["reference_passed"] == 3 and not mc["passed"]
     assert (out / "mc" / "summary.json").exists() and (out / "margins.log").exists()

@@ -38,16 +38,39 @@ def _f(x, spec=".3f") -> str:
     return format(x, spec)
 
 
+def _at(w_radps) -> str:
+    """``@ω`` [rad/s] of the crossover a margin belongs to (``@-`` where there is none)."""
+    return f"@{_f(w_radps, '.3g'):<6}"
+
+
+def _whole(r) -> str:
+    """The μ bound's whole-matrix ab13md calls at one time: made, won, stopped (! if any)."""
+    if "mu_whole_calls" not in r:
+        return ""
+    stopped = r["mu_whole_stopped"]
+    return (f" {r['mu_whole_calls']:>5} {r['mu_whole_won']:>3} {stopped:>4}"
+            + ("!" if stopped else ""))
+
+
 def _line(r) -> str:
     bend = "ok" if r["worst_bending_1_ok"] and r["worst_bending_2_ok"] else "FAIL"
     return (f"{r['t_s']:6.1f} | {_f(r['nominal_disk_alpha']):>6} "
             f"{_f(r['nominal_disk_gm_db'], '.1f'):>5} {_f(r['nominal_disk_pm_deg'], '.1f'):>5} | "
             f"{_f(r['worst_disk_alpha']):>6} "
             f"{_f(r['worst_disk_gm_db'], '.1f'):>5} {_f(r['worst_disk_pm_deg'], '.1f'):>5} "
-            f"{_f(r['worst_gm_low_db'], '.1f'):>5} {_f(r['worst_gm_high_db'], '.1f'):>5} "
-            f"{_f(r['worst_pm_deg'], '.1f'):>6} {bend:>4} {r['worst_source'][:6]:>6} | "
+            f"{_f(r['worst_gm_low_db'], '.1f'):>5}{_at(r['worst_w_gm_low_radps'])} "
+            f"{_f(r['worst_gm_high_db'], '.1f'):>5}{_at(r['worst_w_gm_high_radps'])} "
+            f"{_f(r['worst_pm_deg'], '.1f'):>5}{_at(r['worst_w_pm_radps'])} "
+            f"{bend:>4} {r['worst_source'][:6]:>6} | "
             f"{_f(r['max_radius'], '.5f')}{'!' if r['max_radius'] > 1 + 1e-6 else ' '}| "
-            f"{_f(r['mu_lower']):>6} {_f(r.get('mu_upper')):>6}")
+            f"{_f(r['mu_lower']):>6} {_f(r.get('mu_upper')):>6}{_whole(r)}")
+
+
+def _worst_at(figure) -> str:
+    """``t s, ω rad/s``: where a summary figure is (its time and crossover frequency)."""
+    w = figure.get("w_radps")
+    return f"{figure['t_s']:g} s" + ("" if w is None or not math.isfinite(w) else
+                                     f", {w:.3g} rad/s")
 
 
 def _write_csv(path, rows) -> None:
@@ -82,6 +105,7 @@ def _time_domain(args, table_path, out_dir, progress) -> list[dict]:
 def _run(args: argparse.Namespace) -> int:
     from vega_loops import margins as M
     from vega_analysis import robust as R
+    from vega_analysis.mu_analysis import WHOLE_TIMEOUT_S
     from vega_cli.commands.margins import parse_at
     from vega_gnc.controller_table import default_table_path, load_controller_table
     from vega_model.parameters import default_context
@@ -115,11 +139,18 @@ def _run(args: argparse.Namespace) -> int:
     print(f"vega robust: table {table_path}; uncertainty set: thesis Table 2.3 + TVC ±10 % + "
           f"delay ±10 ms (13 parameters); controller on the nominal schedule")
     print("  disk margin α (balanced) with its gain [dB] and phase [deg] margins, nominal and "
-          "at the worst case found (src: corner | search); worst-case rigid GM low/high [dB], "
-          "PM [deg], bending criteria; max |z| over the plants evaluated (! unstable); μ lower "
-          "bound (destabilising scale along the worst-case ray) and upper bound (LFT, ab13md)")
-    print("   t_s |  nom α  DGM   DPM |  wst α  DGM   DPM GMlow GMhi     PM bend    src |"
-          "  max |z|  |  μ_low   μ_up")
+          "at the worst case found (src: corner | search); worst-case rigid GM low/high [dB] "
+          "and PM dist = distance of the phase from -180 deg at the closest gain crossover at "
+          f"or above {M.PM_FLOOR_RADPS:g} rad/s [deg], each @ its crossover's frequency "
+          "[rad/s]; bending criteria; max |z| over the plants evaluated (! unstable); μ lower "
+          "bound (destabilising scale along the worst-case ray) and upper bound (LFT, ab13md)"
+          + ("" if args.no_mu else
+             "; whole/won/stop = its whole-matrix ab13md calls made, whose certificate was the "
+             f"smaller, stopped at the {WHOLE_TIMEOUT_S:g} s limit (! the reduced call's "
+             "certificate stands there)"))
+    print("   t_s |  nom α  DGM   DPM |  wst α  DGM   DPM GMlow @rad/s  GMhi @rad/s "
+          "PMdst @rad/s bend    src |  max |z|  |  μ_low   μ_up"
+          + ("" if args.no_mu else " whole won stop"))
     for r in rows:
         print(_line(r))
     print()
@@ -130,9 +161,9 @@ def _run(args: argparse.Namespace) -> int:
           f"{s['worst_disk_pm_deg']['t_s']:g} s); nominal worst "
           f"{s['nominal_disk_alpha']['value']:.3f} at {s['nominal_disk_alpha']['t_s']:g} s")
     print(f"  worst-case rigid margins: GM low {s['worst_gm_low_db']['value']:.2f} dB at "
-          f"{s['worst_gm_low_db']['t_s']:g} s, GM high {s['worst_gm_high_db']['value']:.2f} dB at "
-          f"{s['worst_gm_high_db']['t_s']:g} s, PM {s['worst_pm_deg']['value']:.1f} deg at "
-          f"{s['worst_pm_deg']['t_s']:g} s")
+          f"{_worst_at(s['worst_gm_low_db'])}, GM high {s['worst_gm_high_db']['value']:.2f} dB "
+          f"at {_worst_at(s['worst_gm_high_db'])}, PM (distance from -180 deg) "
+          f"{s['worst_pm_deg']['value']:.1f} deg at {_worst_at(s['worst_pm_deg'])}")
     stab = ("no unstable plant found" if s["robust_stability_pass"] else
             "UNSTABLE at " + ", ".join(f"{t:g}" for t in s["unstable_times_s"]) + " s")
     print(f"  stability: {stab} (largest |z| {s['max_radius']['value']:.6f} at "
@@ -157,6 +188,14 @@ def _run(args: argparse.Namespace) -> int:
         print(f"  mu upper bound peak {up['value']:.3f} at {up['t_s']:g} s, "
               f"{up['w_radps']:.2f} rad/s; {proof}; largest fit error "
               f"{s['mu_fit_loop_rel']:.3f} of |1 + L| (covered)")
+        stopped = s["mu_whole_stopped_times_s"]
+        print(f"  mu whole-matrix ab13md calls: {s['mu_whole_calls']} made, {s['mu_whole_won']} "
+              f"gave the smaller certificate, {s['mu_whole_stopped']} stopped at the "
+              f"{WHOLE_TIMEOUT_S:g} s limit"
+              + (" (at " + ", ".join(f"{t:g}" for t in stopped) + " s: the reduced call's "
+                 "certificate stands there, the bound depends on the machine's speed)"
+                 if stopped else "")
+              + f"; {s['mu_whole_time_s']:.1f} s of ab13md")
         if s["mu_gap"] is not None:
             g = s["mu_gap"]
             print(f"  mu gap at {g['t_s']:g} s (largest lower bound): {g['lower']:.3f} <= mu "

@@ -8,7 +8,9 @@ OUT):
 * ``margins`` — ``vega margins --table TABLE --dispersed``: gated on its exit status (the
   heritage margins on the nominal plant at every frozen time) and, from its margins.json, on 0
   unstable dispersed loops and the exact bending criterion (docs/FLIGHT_DESIGN.md §3) at every
-  dispersed corner and time; the worst nominal margins are reported;
+  dispersed corner and time; reported: the worst nominal margins and the worst rigid margins
+  over the dispersed plants, each with its crossover frequency, and the drift loop's gain
+  crossovers below the frozen-time floor;
 * ``robust`` — ``vega robust --table TABLE --no-mu``: gated on its exit status (no unstable
   plant found, the worst case meets the bending criteria at every time);
 * ``mc`` — ``vega mc run --table TABLE --runs N``: gated on 0 unstable flights and, with a
@@ -76,20 +78,51 @@ def check_sil(table, out: Path, scenarios) -> list[dict]:
     return results
 
 
+_NOMINAL_WORST = ("gm_low_db", "gm_high_db", "pm_deg", "bending_1", "bending_2")
+_RIGID = ("gm_low_db", "gm_high_db", "pm_deg")
+
+
+def _w_radps(worst: dict):
+    """The frequency [rad/s] a worst figure of margins.json belongs to: the crossover of a
+    margin (``w_radps``), the peak of a bending band (``w_peak_radps``); None if not given."""
+    return worst.get("w_radps", worst.get("w_peak_radps"))
+
+
+def _where(worst: dict | None) -> dict | None:
+    """A worst figure of margins.json as value, time, corner and frequency (None without one)."""
+    if not worst or worst.get("worst") is None:
+        return None
+    return {"value": worst["worst"], "t_s": worst.get("t_s"), "corner": worst.get("corner"),
+            "w_radps": _w_radps(worst)}
+
+
 def dispersed_figures(summary: dict) -> dict:
     """From the summary of ``vega margins --dispersed`` (margins.json): the unstable dispersed
-    loops, the times where a stable dispersed loop misses the exact bending criterion, and the
-    worst nominal margins (value and time)."""
+    loops, the times where a stable dispersed loop misses the exact bending criterion (the
+    gated figures); reported: the worst nominal margins (value and time; their frequencies in
+    ``nominal_worst_w_radps``: the crossover of a margin, the peak of a bending band), the
+    worst rigid margins over the dispersed plants (``dispersed_worst``: value, time, corner,
+    crossover frequency; the PM is the distance of the phase from −180° at a gain crossover at
+    or above the frozen-time floor), and the gain crossovers below that floor
+    (``pm_below_floor``, nominal and dispersed: how many loops have one, the smallest distance
+    there and where; not a criterion, docs/FLIGHT_DESIGN.md §3.1)."""
     everything = summary["dispersed"]["families"]["all"]["requirements"]
     nominal = summary["nominal"]
+    low = {"nominal": nominal.get("pm_below_floor"), "dispersed": everything.get("pm_below_floor")}
     return {"unstable_loops": everything["stability"]["n_unstable_loops"],
             "bending_miss_times": max(everything["bending_1"]["n_fail_times"],
                                       everything["bending_2"]["n_fail_times"]),
             "bending_miss_intervals_s": {k: everything[k]["fail_intervals_s"]
                                          for k in ("bending_1", "bending_2")},
             "nominal_worst": {k: [nominal[k]["worst"], nominal[k].get("t_s")]
-                              for k in ("gm_low_db", "gm_high_db", "pm_deg", "bending_1",
-                                        "bending_2")},
+                              for k in _NOMINAL_WORST},
+            "nominal_worst_w_radps": {k: _w_radps(nominal[k]) for k in _NOMINAL_WORST},
+            "dispersed_worst": {k: _where(everything.get(k)) for k in _RIGID},
+            "pm_below_floor": {
+                which: None if v is None else {
+                    "floor_radps": v.get("floor_radps"), "n_loops": v.get("n_loops"),
+                    **(_where(v) or {"value": None})}
+                for which, v in low.items()},
             "nominal_unstable_loops": nominal["stability"]["n_unstable_loops"]}
 
 
