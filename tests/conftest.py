@@ -3,7 +3,8 @@
 Before any test module is imported (and so before anything imports rclpy), the test process
 gets the project's ROS environment from :mod:`vega_bringup.rosenv`: discovery on localhost only,
 ``ROS_LOCALHOST_ONLY`` unset and a ROS_DOMAIN_ID of its own for this test run (kept if the
-caller, e.g. ``make test`` through ``vega-env``, already chose one). Child processes get the
+caller, e.g. ``make test`` through ``vega-env``, already chose one; a pytest-xdist worker
+always picks its own). Child processes get the
 same environment from the ``ros_env`` fixture, never a stripped one.
 
 Markers (docs/TESTING.md, "Test tiers"): ``slow`` marks tests that take over 2 s (measured
@@ -44,6 +45,11 @@ def pytest_configure(config):
     for module in ("sre_parse", "sre_constants"):
         config.addinivalue_line(
             "filterwarnings", f"ignore:module '{module}' is deprecated:DeprecationWarning")
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        # a pytest-xdist worker inherits the ROS_DOMAIN_ID of the process that started the
+        # workers; two workers in one domain see each other's participants (a run refuses a
+        # busy domain, a node refuses a foreign stream), so each takes a domain of its own
+        os.environ["ROS_DOMAIN_ID"] = str(rosenv.pick_domain_id())
     domain_id = rosenv.configure_current_process()
     config.stash[_DOMAIN_KEY] = domain_id
     # Tests send SIGINT to the processes they start (Ctrl-C on `vega sil run`, on the

@@ -8,7 +8,6 @@ import argparse
 import contextlib
 import io
 import math
-import timeit
 from dataclasses import fields
 
 import numpy as np
@@ -151,11 +150,6 @@ def test_at_interpolates_linearly_and_clamps(fc):
         fc.at(math.nan)
     with pytest.raises(AttributeError):
         got.v_mps = 0.0     # frozen
-
-
-def test_at_is_fast(fc):
-    per_call = min(timeit.repeat(lambda: fc.at(47.2534), number=2000, repeat=5)) / 2000
-    assert per_call < 20e-6, f"FlightConditions.at takes {per_call * 1e6:.1f} µs"
 
 
 # --- malformed files -------------------------------------------------------------------
