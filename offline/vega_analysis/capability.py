@@ -251,9 +251,8 @@ def flight_verdict(result) -> Verdict:
     report = result.metrics(load_requirements())
     row = flight_metrics(result)
     over: list[tuple[float, str]] = []
-    lines = [r for r in report.results if r.gating and r.key != "q_alpha"]
-    lines += [r for r in report.informational if r.key == "q_alpha_allowable"]
-    if not any(r.key == "q_alpha_allowable" for r in lines):
+    lines = report.with_allowable
+    if lines is None:
         raise ValueError("the requirement file has no q_alpha_allowable (docs/REQUIREMENTS.md "
                          "§6)")
     for r in lines:

@@ -227,9 +227,7 @@ def flight_day_metrics(result, spec=None) -> dict[str, Any]:
 
     spec = spec if spec is not None else load_requirements()
     report = result.metrics(spec)
-    failed = [r.key for r in report.results if r.gating and not r.passed and r.key != "q_alpha"]
-    failed = [*(r.key for r in report.informational
-                if r.key == "q_alpha_allowable" and not r.passed), *failed]
+    failed = [r.key for r in report.with_allowable or () if not r.passed]
     base = flight_metrics(result)
     if not all(base[k] <= v for k, v in STABILITY_LIMITS.items()):
         failed.append("stability")

@@ -260,15 +260,20 @@ class RequirementReport:
         return all(r.passed for r in self.results if r.gating)
 
     @property
-    def passed_with_allowable(self) -> bool | None:
-        """The verdict with the constant Qα allowable (docs/REQUIREMENTS.md §6) as the load
-        requirement in place of the Qα envelope, every other requirement as in
-        :attr:`passed`; None when the file has no allowable."""
+    def with_allowable(self) -> tuple[RequirementResult, ...] | None:
+        """The rows that judge a run with the constant Qα allowable (docs/REQUIREMENTS.md §6)
+        as the load requirement: the allowable line, then every gating requirement but the Qα
+        envelope; None when the file has no allowable."""
         line = next((r for r in self.informational if r.key == "q_alpha_allowable"), None)
         if line is None:
             return None
-        return line.passed and all(r.passed for r in self.results
-                                   if r.gating and r.key != "q_alpha")
+        return (line, *(r for r in self.results if r.gating and r.key != "q_alpha"))
+
+    @property
+    def passed_with_allowable(self) -> bool | None:
+        """The verdict of :attr:`with_allowable` (None when the file has no allowable)."""
+        rows = self.with_allowable
+        return None if rows is None else all(r.passed for r in rows)
 
     def __getitem__(self, key: str) -> RequirementResult:
         for r in self.results:
