@@ -277,7 +277,8 @@ def fly_flight_day_batch(scenario_yaml: str, table_path: str, dispersions_text: 
         s = flight_day_sample(base, disp, campaign_seed, index, env, out_dir)
         _record_scenario(scenario_path(out_dir, index), s.scenario)
         sigma = change_rms_mps(env.site, s.month, env.lag_s)
-        dz = drift_allowance_m(scenario_yaml, table_path, alt, sigma, env.lcc.k_sigma)
+        dz = drift_allowance_m(scenario_yaml, table_path, alt, sigma,
+                               env.site.change_vertical_correlation_m, env.lcc)
         predicted = run_scenario(predicted_scenario(base, s.measured, s.scenario.guidance),
                                  table)
         lcc = evaluate_lcc(predicted, s.measured, alt, sigma, dz, env.lcc, spec)

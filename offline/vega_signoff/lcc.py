@@ -17,11 +17,15 @@ criterion judges that, and nothing the vehicle will meet later:
 
     GO on load needs max_t (|Qα_pred(t)| + allowance(t)) ≤ A (the constant allowable,
     docs/REQUIREMENTS.md §6); on drift, max_t (|z_pred(t)| + Δz_k(t)) < the drift limit,
-    Δz_k(t) the drift response of the nominal flight to a change of k σ_Δw of one sense at
-    every altitude (:func:`drift_allowance_m`);
+    Δz_k(t) = k·sqrt(g(t)ᵀ C g(t)) the k-sigma drift response to the change field: g_j(t)
+    the drift's sensitivity to the wind at node h_j (finite differences of the nominal
+    predicted flight, :func:`drift_sensitivity`), C_ij = σ_i σ_j exp(−|h_i − h_j|/L_Δ) the
+    change's covariance between nodes (:func:`drift_allowance_m`; derivation in
+    docs/MONTE_CARLO.md §9.2);
 (c) **low-speed α**: below Mach M₀ (the envelope's threshold, 0.31) the predicted flight
-    with the same allowance meets §2's envelope (docs/REQUIREMENTS.md §6.4: α at low speed is
-    an LCC input);
+    meets §2's envelope, with no change allowance (docs/REQUIREMENTS.md §6.4: α at low speed
+    is an LCC input, not part of the success criterion the allowance protects;
+    docs/MONTE_CARLO.md §9.2 (b));
 (d) **ground wind**: the measured speed below ``top_m`` at most the limit.
 
 Every number is in ``data/lcc.yaml`` with its source; the allowable, the drift limit and the
@@ -46,7 +50,8 @@ from vega_core.errors import BadFile
 
 __all__ = ["LccSettings", "LccVerdict", "default_lcc_path", "load_lcc", "parse_lcc",
            "change_allowance_pa_rad", "ground_wind_mps", "evaluate_lcc",
-           "predicted_scenario", "drift_allowance_m", "REASONS"]
+           "predicted_scenario", "drift_sensitivity", "change_covariance", "drift_allowance_m",
+           "REASONS"]
 
 REASONS = ("load", "drift", "low_speed_alpha", "ground_wind")
 """The no-go reasons, in the order :func:`evaluate_lcc` reports them."""
@@ -61,6 +66,9 @@ class LccSettings:
     k_sigma: float                  # 1: multiple of the wind-change rms in the allowance
     ground_wind_limit_mps: float    # m/s: largest measured speed below top_m
     ground_wind_top_m: float        # m: the layer the ground-wind limit applies to
+    drift_node_spacing_m: float     # m: spacing of the drift sensitivity's wind nodes
+    drift_top_m: float              # m: highest node (its value held above, as a table is)
+    drift_perturbation_mps: float   # m/s: the finite difference of each node's wind
 
 
 def default_lcc_path() -> Path:
@@ -89,14 +97,24 @@ def parse_lcc(text: str, path: str = "<lcc>") -> LccSettings:
     ground = _keys(path, "ground_wind", tree["ground_wind"], ("limit_mps", "top_m"))
     limit = _valued(path, "ground_wind.limit_mps", ground["limit_mps"], "m/s", 0.0, 120.0)
     top = _valued(path, "ground_wind.top_m", ground["top_m"], "m", 0.0, 30_000.0)
-    drift = _keys(path, "drift_allowance", tree["drift_allowance"], ("method", "source"))
-    if drift["method"] != "sensitivity_flight":
+    drift = _keys(path, "drift_allowance", tree["drift_allowance"],
+                  ("method", "node_spacing_m", "top_m", "perturbation_mps", "source"))
+    if drift["method"] != "linear_gaussian":
         raise _fail(path, "drift_allowance.method",
-                    f"must be 'sensitivity_flight', got {drift['method']!r}")
+                    f"must be 'linear_gaussian', got {drift['method']!r}")
     if not isinstance(drift["source"], str) or not drift["source"].strip():
         raise _fail(path, "drift_allowance.source", "must be a non-empty text")
+    spacing = _valued(path, "drift_allowance.node_spacing_m", drift["node_spacing_m"], "m",
+                      10.0, 10_000.0)
+    drift_top = _valued(path, "drift_allowance.top_m", drift["top_m"], "m", 0.0, 100_000.0)
+    if drift_top / spacing > 1000.0:
+        raise _fail(path, "drift_allowance.top_m",
+                    f"gives {drift_top / spacing:.0f} nodes at the spacing; at most 1000")
+    eps = _valued(path, "drift_allowance.perturbation_mps", drift["perturbation_mps"], "m/s",
+                  1e-3, 10.0)
     return LccSettings(path=path, text=text, k_sigma=k, ground_wind_limit_mps=limit,
-                       ground_wind_top_m=top)
+                       ground_wind_top_m=top, drift_node_spacing_m=spacing,
+                       drift_top_m=drift_top, drift_perturbation_mps=eps)
 
 
 def load_lcc(path: str | Path | None = None) -> LccSettings:
@@ -154,7 +172,7 @@ class LccVerdict:
     predicted_drift_m: float
     drift_with_allowance_m: float
     drift_limit_m: float
-    low_speed_ratio: float                   # max over M < M₀ of (|Qα|+allowance)/envelope
+    low_speed_ratio: float                   # max over M < M₀ of |Qα_pred|/envelope
     ground_wind_mps: float
     ground_wind_limit_mps: float
 
@@ -209,7 +227,7 @@ def evaluate_lcc(predicted, measured, sigma_altitude_m, sigma_mps, drift_allowan
     m0 = spec.envelope_definition.mach_min if spec.envelope_definition else 0.31
     low = mach < m0
     env = np.interp(mach, spec.envelope_mach, spec.envelope_pa_rad)
-    low_ratio = float((load[low] / env[low]).max()) if low.any() else 0.0
+    low_ratio = float((qa[low] / env[low]).max()) if low.any() else 0.0
     ground = ground_wind_mps(measured.altitude_m, measured.wind_mps, settings.ground_wind_top_m)
     reasons = []
     if not load[i] <= spec.allowable_pa_rad:
@@ -250,34 +268,78 @@ def _controller_table(path: str):
     return load_controller_table(path)
 
 
-@lru_cache(maxsize=32)
-def _drift_allowance(scenario_yaml: str, table_path: str, altitude_key: bytes,
-                     sigma_key: bytes, k_sigma: float) -> np.ndarray:
+def _wind_nodes(settings: LccSettings) -> np.ndarray:
+    """The drift sensitivity's wind nodes [m]: 0, spacing, … up to ``drift_top_m``."""
+    n = int(math.floor(settings.drift_top_m / settings.drift_node_spacing_m + 1e-9))
+    return settings.drift_node_spacing_m * np.arange(n + 1, dtype=float)
+
+
+_SENSITIVITY_BATCH = 16      # flights per fly_batch call: ≈ 9 MB each while a batch flies
+
+
+@lru_cache(maxsize=4)
+def _drift_sensitivity(scenario_yaml: str, table_path: str, spacing_m: float, top_m: float,
+                       eps_mps: float) -> tuple[np.ndarray, np.ndarray]:
     from vega_model.wind import WindTable
-    from vega_sim.closed_loop import run_scenario
+    from vega_sim.batch import fly_batch
     from vega_sim.scenario import parse_scenario
 
     base = parse_scenario(scenario_yaml, "<campaign scenario>")
-    alt = np.frombuffer(altitude_key, dtype=float)
-    sigma = np.frombuffer(sigma_key, dtype=float)
-    calm = WindTable(alt, np.zeros_like(alt), "calm (drift allowance reference)")
-    moved = WindTable(alt, k_sigma * sigma, f"{k_sigma:g} sigma wind change at every altitude")
+    n = int(math.floor(top_m / spacing_m + 1e-9))
+    nodes = spacing_m * np.arange(n + 1, dtype=float)
+    winds = [np.zeros_like(nodes)]
+    for j in range(nodes.size):
+        w = np.zeros_like(nodes)
+        w[j] = eps_mps
+        winds.append(w)
+    scenarios = [predicted_scenario(base, WindTable(nodes, w, f"drift sensitivity {i}"),
+                                    base.guidance) for i, w in enumerate(winds)]
     table = _controller_table(table_path)
-    z0 = run_scenario(predicted_scenario(base, calm, base.guidance), table).z_m
-    z1 = run_scenario(predicted_scenario(base, moved, base.guidance), table).z_m
-    out = np.abs(np.asarray(z1, dtype=float) - np.asarray(z0, dtype=float))
-    out.setflags(write=False)
-    return out
+    z = []
+    for start in range(0, len(scenarios), _SENSITIVITY_BATCH):
+        for r in fly_batch(scenarios[start:start + _SENSITIVITY_BATCH], table):
+            z.append(np.array(r.z_m, dtype=float))
+            del r
+    g = (np.stack(z[1:]) - z[0][None, :]) / eps_mps
+    nodes.setflags(write=False)
+    g.setflags(write=False)
+    return nodes, g
+
+
+def drift_sensitivity(scenario_yaml: str, table_path: str,
+                      settings: LccSettings) -> tuple[np.ndarray, np.ndarray]:
+    """The wind nodes h_j [m] and the drift sensitivity g_j(t) = ∂z(t)/∂w_j [m per m/s],
+    (nodes, frames), of the nominal predicted flight (the base scenario's reference, no
+    turbulence, gust or INS noise).
+
+    Finite differences: a calm flight and one flight per node with that node's wind at
+    +``drift_perturbation_mps`` (the plant reads the table linearly between nodes and holds
+    the top node's value above it, so node j's flight is the hat function at h_j), flown by
+    the batched engine. Computed once per process for a scenario, table and node set
+    (``len(nodes) + 1`` flights)."""
+    return _drift_sensitivity(scenario_yaml, str(table_path), settings.drift_node_spacing_m,
+                              settings.drift_top_m, settings.drift_perturbation_mps)
+
+
+def change_covariance(nodes_m, sigma_altitude_m, sigma_mps, correlation_m: float) -> np.ndarray:
+    """C_ij = σ(h_i) σ(h_j) exp(−|h_i − h_j|/L) [m²/s²]: the covariance of the wind change
+    between nodes (σ interpolated linearly on its grid, end values held)."""
+    h = np.asarray(nodes_m, dtype=float)
+    s = np.interp(h, np.asarray(sigma_altitude_m, dtype=float),
+                  np.asarray(sigma_mps, dtype=float))
+    if not correlation_m > 0.0:
+        raise ValueError(f"correlation_m must be > 0, got {correlation_m!r}")
+    return np.outer(s, s) * np.exp(-np.abs(h[:, None] - h[None, :]) / float(correlation_m))
 
 
 def drift_allowance_m(scenario_yaml: str, table_path: str, sigma_altitude_m, sigma_mps,
-                      k_sigma: float) -> np.ndarray:
-    """Δz_k(t) [m]: the drift change of the nominal flight (the base scenario's reference,
-    no turbulence, gust or noise) when the steady wind is k σ_Δw(h) at every altitude instead
-    of calm — |z_k(t) − z_0(t)| at the flight's frame times. The closed loop is near-linear in
-    the wind, so the response to an unforecast change does not depend on the reference it is
-    added to; computed once per process for a given σ profile (two flights)."""
-    alt = np.ascontiguousarray(sigma_altitude_m, dtype=float)
-    sigma = np.ascontiguousarray(sigma_mps, dtype=float)
-    return _drift_allowance(scenario_yaml, str(table_path), alt.tobytes(), sigma.tobytes(),
-                            float(k_sigma))
+                      correlation_m: float, settings: LccSettings) -> np.ndarray:
+    """Δz_k(t) = k·sqrt(g(t)ᵀ C g(t)) [m] at the predicted flight's frame times: k standard
+    deviations of the drift's response to the wind change since the sounding (module
+    docstring (b); docs/MONTE_CARLO.md §9.2), g from :func:`drift_sensitivity`, C from
+    :func:`change_covariance` with the change's rms ``sigma_mps`` on ``sigma_altitude_m`` and
+    its vertical correlation scale ``correlation_m`` [m]."""
+    nodes, g = drift_sensitivity(scenario_yaml, table_path, settings)
+    c = change_covariance(nodes, sigma_altitude_m, sigma_mps, correlation_m)
+    var = np.sum(g * (c @ g), axis=0)
+    return settings.k_sigma * np.sqrt(np.maximum(var, 0.0))

@@ -31,7 +31,7 @@ def judge(tmp_path_factory):
     """LCC of a measured profile: re-bias, fly the predicted flight, evaluate (July's σ)."""
     base = load_scenario("nominal")
     dz = lcc.drift_allowance_m(dump_scenario(base), str(default_table_path()), ALT, SIGMA,
-                               SETTINGS.k_sigma)
+                               SITE.change_vertical_correlation_m, SETTINGS)
     directory = tmp_path_factory.mktemp("lcc")
 
     def run(name, wind):
