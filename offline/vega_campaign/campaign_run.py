@@ -61,12 +61,13 @@ it flies (≈ 0.6 GB per worker at 64), and a killed campaign loses at most one 
 worker."""
 
 
-ENVIRONMENT_BATCH = 8
-"""Most samples in one task of a campaign flown by an environment's task (the flight day),
-whose samples fly one at a time (each its own guidance reference): the batch only sets how
-often rows reach the disk and the progress line, and how many a killed campaign loses; the
-task's fixed cost (the guidance problem's assembly, ≈ 8 CPU s) is paid once per worker
-process, not per task."""
+ENVIRONMENT_BATCH = 32
+"""Most samples in one task of a campaign flown by an environment's task (the flight day,
+whose task flies its samples' predicted flights as one batch and their flights as another):
+smaller than :data:`DEFAULT_BATCH` because a sample also costs its re-biasing, so that rows
+reach the disk and the progress line every ≈ 10 CPU s; the task's fixed cost (the guidance
+problem's assembly, ≈ 8 CPU s, and the LCC's drift sensitivity, 62 flights) is paid once per
+worker process, not per task."""
 
 
 def batches(todo: Sequence[int], size: int, workers: int) -> list[list[int]]:
@@ -229,7 +230,7 @@ def run_campaign(scenario, dispersions, *, runs: int, seed: int, out: Path, tabl
         if inputs.get("environment") is not None:
             groups = batches(todo, min(batch, ENVIRONMENT_BATCH), n_workers)
             progress(f"mc: {inputs['environment'].get('name')} environment, {len(groups)} "
-                     f"task(s) of up to {max(map(len, groups))} samples (one flight at a time)")
+                     f"task(s) of up to {max(map(len, groups))} samples (batched)")
             futures = [client.submit(task, *args, inputs["environment"], str(out.resolve()),
                                      group, pure=False, key=f"batch-{group[0]}-{len(group)}")
                        for group in groups]

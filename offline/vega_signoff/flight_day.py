@@ -246,6 +246,30 @@ def _controller_table(path: str):
     return load_controller_table(path)
 
 
+def _fly_all(scenarios: list, table) -> list:
+    """Every scenario's flight, in order: those the batched engine flies with the first it
+    flies in one :func:`vega_sim.batch.fly_batch` call, any other by
+    :func:`vega_sim.closed_loop.run_scenario` (the same numbers either way, bit for bit:
+    tests/sim/test_batch.py)."""
+    from vega_model.parameters import default_context
+    from vega_sim.batch import batch_refusal, fly_batch
+    from vega_sim.closed_loop import run_scenario
+
+    context = default_context()
+    lead = next((s for s in scenarios if batch_refusal(s, s, context) is None), None)
+    together = [k for k, s in enumerate(scenarios)
+                if lead is not None and batch_refusal(s, lead, context) is None]
+    out: list = [None] * len(scenarios)
+    if together:
+        for k, result in zip(together, fly_batch([scenarios[k] for k in together], table,
+                                                 context=context)):
+            out[k] = result
+    for k, result in enumerate(out):
+        if result is None:
+            out[k] = run_scenario(scenarios[k], table, context=context)
+    return out
+
+
 def fly_flight_day_batch(scenario_yaml: str, table_path: str, dispersions_text: str,
                          campaign_seed: int, environment: Mapping, out_dir: str,
                          indices) -> list[dict[str, Any]]:
@@ -253,45 +277,59 @@ def fly_flight_day_batch(scenario_yaml: str, table_path: str, dispersions_text: 
 
     Per sample: :func:`flight_day_sample` (its reference re-biased and written), the
     predicted flight and :func:`vega_signoff.lcc.evaluate_lcc` on the measured profile, then
-    the sample's flight (go or no-go alike), each by
-    :func:`vega_sim.closed_loop.run_scenario` (the samples fly different references, which the
-    batched engine does not share). ``wall_s`` is the sample's own wall time (re-biasing, the
-    LCC's flights and its flight). Picklable arguments, one Dask task per call."""
+    the sample's flight (go or no-go alike). The predicted flights of the samples fly as one
+    batch, then their flights as another (:func:`vega_sim.batch.fly_batch`, each sample with
+    its own re-biased reference; equal to ``run_scenario`` bit for bit). ``wall_s`` is the
+    task's wall time divided equally among its samples. Picklable arguments, one Dask task
+    per call."""
     from vega_campaign.campaign import flight_metrics, parse_dispersions
     from vega_campaign.wind_environment import change_rms_mps
-    from vega_sim.closed_loop import run_scenario
     from vega_sim.requirements import load_requirements
     from vega_sim.scenario import parse_scenario
 
     from vega_signoff.lcc import drift_allowance_m, evaluate_lcc, predicted_scenario
 
+    t0 = time.perf_counter()
     base = parse_scenario(scenario_yaml, "<campaign scenario>")
     disp = parse_dispersions(dispersions_text, "<campaign dispersions>")
     env = parse_environment(environment)
     table = _controller_table(str(table_path))
     spec = load_requirements()
     alt = env.site.fine_altitude_m
-    rows = []
-    for index in (int(i) for i in indices):
-        t0 = time.perf_counter()
+    indices = [int(i) for i in indices]
+    samples = []
+    for index in indices:
         s = flight_day_sample(base, disp, campaign_seed, index, env, out_dir)
         _record_scenario(scenario_path(out_dir, index), s.scenario)
-        sigma = change_rms_mps(env.site, s.month, env.lag_s)
-        dz = drift_allowance_m(scenario_yaml, table_path, alt, sigma,
-                               env.site.change_vertical_correlation_m, env.lcc)
-        predicted = run_scenario(predicted_scenario(base, s.measured, s.scenario.guidance),
-                                 table)
-        lcc = evaluate_lcc(predicted, s.measured, alt, sigma, dz, env.lcc, spec)
-        del predicted
-        result = run_scenario(s.scenario, table)
+        samples.append(s)
+    verdicts = []
+    sigma: dict[int, Any] = {}
+    dz: dict[int, Any] = {}
+    predicted = _fly_all([predicted_scenario(base, s.measured, s.scenario.guidance)
+                          for s in samples], table)
+    for k, s in enumerate(samples):
+        if s.month not in sigma:
+            sigma[s.month] = change_rms_mps(env.site, s.month, env.lag_s)
+            dz[s.month] = drift_allowance_m(scenario_yaml, table_path, alt, sigma[s.month],
+                                            env.site.change_vertical_correlation_m, env.lcc)
+        verdicts.append(evaluate_lcc(predicted[k], s.measured, alt, sigma[s.month],
+                                     dz[s.month], env.lcc, spec))
+        predicted[k] = None
+    del predicted
+    flights = _fly_all([s.scenario for s in samples], table)
+    rows = []
+    for k, (index, s, lcc) in enumerate(zip(indices, samples, verdicts)):
+        result, flights[k] = flights[k], None
         row = {"sample": index, "seed": int(s.scenario.seed), **s.values,
                **flight_metrics(result), **flight_day_metrics(result, spec), **lcc.row()}
         del result
         row["flight_day_verdict"] = ("scrubbed" if not row["lcc_go"] else
                                      "pass" if row["passed_allowable"] and row["stable"]
                                      else "fail")
-        row["wall_s"] = time.perf_counter() - t0
         rows.append(row)
+    wall = (time.perf_counter() - t0) / max(len(rows), 1)
+    for row in rows:
+        row["wall_s"] = wall
     return rows
 
 

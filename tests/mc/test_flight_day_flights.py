@@ -101,3 +101,40 @@ def test_flight_day_sample_keeps_the_thesis_box_draws_but_the_steady_wind(tmp_pa
     other = flight_day_sample(base, disp, 3, 13, dataclasses.replace(env, month=9),
                               tmp_path / "m9")
     assert other.month == 9 and other.scenario.uncertainty == box.uncertainty
+
+
+def test_flight_day_task_rows_equal_the_per_flight_path(tmp_path):
+    """The task flies its samples' predicted flights and flights as batches, each with its
+    own re-biased reference: every row equals what run_scenario gives for the recorded
+    scenario and for the predicted flight on the sample's measured profile."""
+    from vega_campaign.campaign import default_dispersions_path, flight_metrics
+    from vega_sim.requirements import load_requirements
+    from vega_sim.scenario import parse_scenario
+    from vega_signoff.flight_day import (fly_flight_day_batch, flight_day_metrics,
+                                         scenario_path)
+
+    base, disp_text = load_scenario("nominal"), default_dispersions_path().read_text()
+    settings = environment_settings()
+    table = default_table_path()
+    rows = fly_flight_day_batch(dump_scenario(base), str(table), disp_text, 4, settings,
+                                str(tmp_path), [2, 7, 9])
+    assert [r["sample"] for r in rows] == [2, 7, 9]
+    env, spec = parse_environment(settings), load_requirements()
+    guidance = set()
+    for row in rows:
+        i = row["sample"]
+        scenario = parse_scenario(scenario_path(tmp_path, i).read_text(), "recorded")
+        guidance.add(scenario.guidance)
+        flown = run_scenario(scenario, table)
+        for key, value in {**flight_metrics(flown), **flight_day_metrics(flown, spec)}.items():
+            assert row[key] == value or (value != value and row[key] != row[key]), (i, key)
+        s = flight_day_sample(base, load_dispersions(), 4, i, env, tmp_path)
+        predicted = run_scenario(lcc.predicted_scenario(base, s.measured, s.scenario.guidance),
+                                 table)
+        sigma = change_rms_mps(SITE, s.month, env.lag_s)
+        dz = lcc.drift_allowance_m(dump_scenario(base), str(table), ALT, sigma,
+                                   SITE.change_vertical_correlation_m, env.lcc)
+        verdict = lcc.evaluate_lcc(predicted, s.measured, ALT, sigma, dz, env.lcc, spec)
+        assert {k: row[k] for k in verdict.row()} == verdict.row(), i
+        assert row["flight_day_verdict"] in ("pass", "fail", "scrubbed")
+    assert len(guidance) == 3                 # each sample flew its own reference

@@ -23,6 +23,7 @@ from vega_gnc.controller_runtime import (STATUS_HOLD_LAST, STATUS_LIMITED, STATU
                                          ControllerRuntime, Measurement)
 from vega_gnc.controller_table import (MEASUREMENT_NAMES, default_table_path,
                                        load_controller_table)
+from vega_gnc.guidance_reference import default_reference_path, load_guidance_reference
 from vega_loops.export import write_controller_table
 from vega_model.actuator import ActuatorParams
 from vega_model.vehicle_data import load_vehicle_data
@@ -139,6 +140,41 @@ def test_saturating_flights_without_guidance_equal_per_flight(table):
     assert (np.abs(rate) == limits.rate_limit_radps).any()
 
 
+def _other_reference(directory, name: str, scale: float, every: int = 1):
+    """The shipped reference with its rows scaled by ``scale`` (a reference other than the
+    shipped one on its grid), on every ``every``-th time of its grid; written as a file."""
+    arrays = dict(np.load(default_reference_path(), allow_pickle=False))
+    keep = np.arange(0, arrays["t_s"].size, every)
+    if keep[-1] != arrays["t_s"].size - 1:
+        keep = np.append(keep, arrays["t_s"].size - 1)
+    for key, value in arrays.items():
+        if value.ndim and value.shape[0] == arrays["t_s"].size and key != "t_s":
+            arrays[key] = value[keep] * (scale if key in ("reference", "beta_ff_rad") else 1.0)
+    arrays["t_s"] = arrays["t_s"][keep]
+    path = directory / f"{name}.npz"
+    np.savez(path, **arrays)
+    load_guidance_reference(path)                       # a valid reference file
+    return str(path)
+
+
+@pytest.mark.slow
+def test_each_sample_flies_its_own_reference(table, tmp_path):
+    """Samples with different guidance references (the shipped one, others on its grid as a
+    flight-day campaign re-biases them, one on another grid) fly in one batch, each equal to
+    its own per-flight run bit for bit."""
+    base = _window(load_scenario("nominal"), 44.0, 47.0)
+    guidance = [base.guidance, _other_reference(tmp_path, "a", 1.3),
+                _other_reference(tmp_path, "b", 0.6), _other_reference(tmp_path, "a", 1.3),
+                _other_reference(tmp_path, "c", 1.1, every=2)]
+    same_grid = [dataclasses.replace(base, seed=i, guidance=g)
+                 for i, g in enumerate(guidance[:4])]
+    results = fly_batch(same_grid, table)
+    _assert_equal_flights(same_grid, results, table)
+    assert results[0].cmd_rad.tobytes() != results[1].cmd_rad.tobytes()   # they differ
+    mixed = [dataclasses.replace(base, guidance=g) for g in (guidance[0], guidance[4])]
+    _assert_equal_flights(mixed, fly_batch(mixed, table), table)
+
+
 def test_refuses_what_it_does_not_fly(table):
     nominal = _window(load_scenario("nominal"), 10.0, 11.0)
     for other, why in ((dataclasses.replace(nominal, plant="linear"), "plant"),
@@ -207,22 +243,38 @@ def overflow_table(tmp_path_factory):
 
 
 @pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")
-@pytest.mark.parametrize("which", ["shipped", "overflow"])
-def test_controller_batch_equals_runtimes_on_faulty_streams(table, overflow_table, which):
+@pytest.mark.parametrize("which", ["shipped", "overflow", "per_sample", "per_sample_grids"])
+def test_controller_batch_equals_runtimes_on_faulty_streams(table, overflow_table, which,
+                                                            tmp_path):
     """Each sample of a ControllerBatch returns its own runtime's commands and keeps its state,
-    bit for bit, through every safe path (the shipped table with its guidance reference; a
-    table whose gains overflow, without one)."""
+    bit for bit, through every safe path (the shipped table with its guidance reference, or
+    with a reference of its own per sample on one grid or on two; a table whose gains
+    overflow, without one)."""
     rng = np.random.default_rng(20)
+    n, n_steps = 6, 400
+    expected = {STATUS_HOLD_LAST, STATUS_SAFE_ZERO, STATUS_LIMITED, STATUS_VELOCITY_CLAMPED}
+    used, size = table, 1.0
     if which == "shipped":
-        used, reference, size = table, scenario_reference(load_scenario("nominal")), 1.0
-        expected = {STATUS_HOLD_LAST, STATUS_SAFE_ZERO, STATUS_LIMITED, STATUS_VELOCITY_CLAMPED}
+        reference = scenario_reference(load_scenario("nominal"))
+        references = [reference] * n
+    elif which.startswith("per_sample"):
+        every = 3 if which == "per_sample_grids" else 1
+        references = [load_guidance_reference(_other_reference(tmp_path, f"r{i}", 0.5 + 0.2 * i,
+                                                               every if i % 2 else 1))
+                      for i in range(n)]
+        reference = references
     else:                                   # |Σy| ≈ 1: overflows at some steps, not at all
         used, reference, size = overflow_table, None, 0.005
+        references = [None] * n
         expected = {STATUS_HOLD_LAST, STATUS_SAFE_ZERO, STATUS_LIMITED}
-    n, n_steps = 6, 400
     streams = _streams(n, n_steps, rng, size)
-    runtimes = [ControllerRuntime(used, reference=reference) for _ in range(n)]
+    runtimes = [ControllerRuntime(used, reference=references[i]) for i in range(n)]
     batch = ControllerBatch(n, used, reference=reference)
+    assert (batch._many is not None) == which.startswith("per_sample")
+    if which == "per_sample":
+        assert batch._stacks is not None        # one grid: read together
+    if which == "per_sample_grids":
+        assert batch._stacks is None
     statuses = set()
     for k in range(n_steps):
         ms = [streams[i][k][0] for i in range(n)]

@@ -39,6 +39,7 @@ OK).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -264,15 +265,35 @@ class ControllerBatch:
     ----------
     n
         Number of samples.
-    table, limits, rate_mps2, reference
+    table, limits, rate_mps2
         As :class:`ControllerRuntime` (the same for every sample).
+    reference
+        As :class:`ControllerRuntime`: one reference for every sample, or a sequence of n
+        references, sample i flying ``reference[i]`` (all given or none: None for all).
+        References on one time grid are read together (the same operations as
+        :meth:`GuidanceReference.at`, row by row); others one by one.
     """
 
     def __init__(self, n: int, table: ControllerTable, limits: RuntimeLimits = RuntimeLimits(),
-                 rate_mps2: float | None = None, reference: GuidanceReference | None = None):
+                 rate_mps2: float | None = None,
+                 reference: GuidanceReference | Sequence[GuidanceReference] | None = None):
+        self.n = int(n)
+        many = None
+        if reference is not None and not isinstance(reference, GuidanceReference):
+            many = list(reference)
+            if len(many) != self.n or not all(isinstance(r, GuidanceReference) for r in many):
+                raise ValueError(f"ControllerBatch: reference must be one GuidanceReference "
+                                 f"or {self.n} of them")
+            reference = many[0]
         rt = ControllerRuntime(table, limits, rate_mps2, reference)
         self.runtime = rt
-        self.n = int(n)
+        self._many = None
+        if many is not None and any(r is not many[0] for r in many):
+            t = many[0].t_s
+            shared = all(r.t_s.shape == t.shape and np.array_equal(r.t_s, t) for r in many)
+            self._many = many
+            self._stacks = (np.stack([r._stack for r in many]),
+                            np.stack([r._dstack for r in many])) if shared else None
         fields = ("pitch_rad", "pitch_rate_radps", "drift_m", "drift_rate_mps")
         self._cols = np.array([fields.index(name) for name in rt._getters])
         self._bounds = np.array(rt._bounds, dtype=float)
@@ -366,13 +387,31 @@ class ControllerBatch:
             self._update(k, stamp_s[k], values[k], v[k], now_us[k], u, v_out, status)
         return u, v_out, status
 
-    def _reference(self, stamp_s: np.ndarray) -> np.ndarray:
-        """The guidance reference's row (:meth:`GuidanceReference.at`) at each sample time."""
+    def _reference(self, stamp_s: np.ndarray, k) -> np.ndarray:
+        """The guidance reference's row (:meth:`GuidanceReference.at`) at each sample time of
+        the samples ``k`` (indices or a slice)."""
+        if self._many is not None:
+            return self._references(stamp_s, k)
         at = self.runtime.reference.at
         if (stamp_s == stamp_s[0]).all():             # one sample time (a batch's frame)
             return at(float(stamp_s[0]))[None, :]
         times, where = np.unique(stamp_s, return_inverse=True)
         return np.array([at(float(t)) for t in times])[where.ravel()]
+
+    def _references(self, stamp_s: np.ndarray, k) -> np.ndarray:
+        """:meth:`_reference` with one reference per sample."""
+        idx = np.arange(self.n)[k]
+        if self._stacks is not None and (stamp_s == stamp_s[0]).all():
+            ref = self._many[0]                       # the shared grid: at()'s index, factor
+            t, ts = ref.t_s, float(stamp_s[0])
+            i = int(np.searchsorted(t, ts, side="right")) - 1
+            stack, dstack = self._stacks
+            if i < 0:
+                return stack[idx, 0].copy()
+            if i >= t.size - 1:
+                return stack[idx, -1].copy()
+            return stack[idx, i] + ((ts - t[i]) / ref._dt[i]) * dstack[idx, i]
+        return np.array([self._many[j].at(float(ts)) for j, ts in zip(idx, stamp_s)])
 
     def _update(self, k, stamp_s, values, v, now_us, u, v_out, status) -> None:
         """The scheduled update of the samples ``k`` (indices or a slice) whose measurement
@@ -391,7 +430,7 @@ class ControllerBatch:
         xy[:, n:] = values
         ff = None
         if rt.reference is not None:
-            refs = self._reference(stamp_s)
+            refs = self._reference(stamp_s, k)
             xy[:, n:] -= refs[:, self._ref_cols]
             ff = refs[:, -1]
         xy[:, n:] *= rt._sign

@@ -10,7 +10,8 @@ state of every sample in arrays:
   (:func:`vega_model.batch_kernel.advance_frames`, the per-flight step classes' operations);
 * the controller of all samples is stepped at once by
   :class:`vega_gnc.controller_runtime.ControllerBatch`, the runtime's step element-wise over
-  the samples, built from the same table, limits and guidance reference.
+  the samples, built from the same table and limits, each sample with its own guidance
+  reference (a flight-day campaign re-biases every sample's).
 
 Every input that differs between samples is an array over samples, built per sample by the
 per-flight factories themselves (:mod:`vega_sim.assembly`): the parameter track of the
@@ -21,9 +22,9 @@ latency. So each flight is the per-flight one: tests/sim/test_batch.py compares 
 recorded array of dispersed samples (gusts and the worst of a campaign included) with
 :func:`run_scenario` bit for bit, and the requirement verdicts.
 
-What a batch shares: the span, the plant model (nonlinear only), the guidance reference, the
-loop's frame, physics step and controller period, and the controller table; no
-``thesis_constant_dryden`` wind and no :class:`vega_sim.closed_loop.LoopPerturbation`
+What a batch shares: the span, the plant model (nonlinear only), whether a guidance
+reference is flown (each sample may fly its own), the loop's frame, physics step and
+controller period, and the controller table; no ``thesis_constant_dryden`` wind and no :class:`vega_sim.closed_loop.LoopPerturbation`
 (those runs stay on the per-flight path). :func:`fly_batch` refuses anything else
 (:class:`vega_core.errors.BadInput`).
 
@@ -121,8 +122,8 @@ def batch_refusal(scenario: Scenario, first: Scenario,
         return "thesis_constant_dryden wind"
     if (scenario.t_start_ms, scenario.t_end_ms) != (first.t_start_ms, first.t_end_ms):
         return "a span other than the first scenario's"
-    if scenario.guidance != first.guidance:
-        return "a guidance reference other than the first scenario's"
+    if (scenario.guidance == "none") != (first.guidance == "none"):
+        return "guidance 'none' beside references (all fly a reference or none does)"
     t, t0 = loop_timing(scenario, context), loop_timing(first, context)
     if (t.physics_dt_ms, t.frame_ms, t.controller_period_ms) != (
             t0.physics_dt_ms, t0.frame_ms, t0.controller_period_ms):
@@ -205,12 +206,16 @@ def _fly(scenarios: list[Scenario], seeds: list[int], table: ControllerTable,
     n_frames = (first.t_end_ms - t0) // frame
     steps = frame // dt
     n = len(scenarios)
-    reference = scenario_reference(first)             # one guidance file for the batch
+    loaded: dict = {}                                 # each guidance file loaded once
+    for s in scenarios:
+        if s.guidance not in loaded:
+            loaded[s.guidance] = scenario_reference(s)
+    references = [loaded[s.guidance] for s in scenarios]
     # the per-sample inputs, each copied into the batch's arrays as soon as it is built (the
     # sample's own copy of the large ones is then dropped)
     samples, consts, views, wind, noise = [], None, None, None, None
     for i, (scenario, seed) in enumerate(zip(scenarios, seeds)):
-        s = _sample_inputs(scenario, seed, context, n_frames, reference)
+        s = _sample_inputs(scenario, seed, context, n_frames, references[i])
         if consts is None:
             consts = np.empty((n, *s.consts.shape))
             views = np.empty((n, *s.views.shape))
@@ -239,7 +244,8 @@ def _fly(scenarios: list[Scenario], seeds: list[int], table: ControllerTable,
     ins = np.empty((n, len(bk.INS_FIELDS), n_frames + 1))
     act_out = np.empty((n, len(bk.ACTUATOR_FIELDS), n_frames * steps + 1))
     work_b, work_r = np.empty(steps), np.empty(steps)
-    controller = ControllerBatch(n, table, limits, reference=reference)
+    controller = ControllerBatch(
+        n, table, limits, reference=None if references[0] is None else references)
     bk.observe(0, t0, t0, refresh, dt, x, views, wind, noise, noise_on, sigma, sensor_lat,
                truth, ins)
     cmd_frames, cmd_u, cmd_v, cmd_status = [], [], [], []
