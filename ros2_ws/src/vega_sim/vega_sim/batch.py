@@ -24,9 +24,9 @@ recorded array of dispersed samples (gusts and the worst of a campaign included)
 
 What a batch shares: the span, the plant model (nonlinear only), whether a guidance
 reference is flown (each sample may fly its own), the loop's frame, physics step and
-controller period, and the controller table; no ``thesis_constant_dryden`` wind and no :class:`vega_sim.closed_loop.LoopPerturbation`
-(those runs stay on the per-flight path). :func:`fly_batch` refuses anything else
-(:class:`vega_core.errors.BadInput`).
+controller period, and the controller table; no ``thesis_constant_dryden`` wind and no
+:class:`vega_sim.closed_loop.LoopPerturbation` (those runs stay on the per-flight path).
+:func:`fly_batch` refuses anything else (:class:`vega_core.errors.BadInput`).
 
 Memory: ≈ 9 MB per 100 s sample while the batch flies (parameter constants, wind, records);
 callers bound it by the batch size. The results' float records are views of the batch's record
