@@ -343,7 +343,10 @@ def summarise_flight_day(rows: Sequence[Mapping]) -> dict:
     :data:`vega_campaign.campaign.STABILITY_LIMITS`, as the thesis-box summary counts
     ``unstable``), failed = n − passed, scrubbed = no-go samples, lower_bound_90 = the
     one-sided Clopper–Pearson lower bound of the success probability at 90 % confidence.
-    ``availability``: per month, the fraction of its samples the LCC lets fly.
+    ``availability``: per month, the fraction of its samples the LCC lets fly;
+    ``scrub_reasons_by_month``: per month, the count of each no-go reason;
+    ``availability_without``: per reason, the availability per month were that criterion
+    alone waived (what each criterion costs).
     ``definitions``: pass counts under §6 and under §2 (both with stability), over the go
     samples and over every sample flown (scrubbed ones: "what would have happened")."""
     from vega_campaign.campaign import STABILITY_LIMITS
@@ -356,9 +359,17 @@ def summarise_flight_day(rows: Sequence[Mapping]) -> dict:
     availability = {str(m): sum(1 for r in rows if r["month"] == m and r["lcc_go"])
                     / sum(1 for r in rows if r["month"] == m) for m in months}
     reasons: dict[str, int] = {}
+    by_month: dict[str, dict[str, int]] = {str(m): {} for m in months}
     for r in rows:
         for why in filter(None, r["lcc_reasons"].split(",")):
             reasons[why] = reasons.get(why, 0) + 1
+            month = by_month[str(int(r["month"]))]
+            month[why] = month.get(why, 0) + 1
+    # availability if one criterion were waived: samples whose reasons are that one only
+    waived = {why: {str(m): sum(1 for r in rows if r["month"] == m
+                                and set(filter(None, r["lcc_reasons"].split(","))) <= {why})
+                    / sum(1 for r in rows if r["month"] == m) for m in months}
+              for why in sorted(reasons)}
     failed_by: dict[str, int] = {}
     for r in go:
         for why in filter(None, r["failed_allowable"].split(",")):
@@ -386,6 +397,8 @@ def summarise_flight_day(rows: Sequence[Mapping]) -> dict:
             "scrub_reasons": reasons,
         },
         "availability": availability,
+        "scrub_reasons_by_month": by_month,
+        "availability_without": waived,
         "definitions": {
             "allowable_section_6": {"go": counts(go, "passed_allowable"),
                                     "all_flown": counts(rows, "passed_allowable"),
@@ -426,6 +439,9 @@ def flight_day_markdown(s: Mapping, settings: Mapping | None = None) -> str:
         f"**{'yes' if f['demonstrated_99_73_at_90'] else 'no'}**.",
         "- Availability (fraction of a month's samples the LCC lets fly): "
         + ", ".join(f"{m}: {v:.3f}" for m, v in s["availability"].items()) + ".",
+        *(f"- Availability were `{why}` waived: "
+          + ", ".join(f"{m}: {v:.3f}" for m, v in by.items()) + "."
+          for why, by in s["availability_without"].items()),
         "", "| definition (with stability) | go samples | all flown | scrubbed (what would have "
         "happened) |", "|---|---|---|---|"]
     for key, name in (("allowable_section_6", "§6 allowable (gating)"),
@@ -443,7 +459,8 @@ def flight_day_markdown(s: Mapping, settings: Mapping | None = None) -> str:
 
 
 def plot_flight_day(out: str | Path, rows: Sequence[Mapping]) -> list[Path]:
-    """``availability_by_month.png`` (bar per month) and ``q_alpha_allowable.png``: the
+    """``availability_by_month.png`` (availability per month, and were each criterion waived;
+    the no-go reasons per month) and ``q_alpha_allowable.png``: the
     histogram of max |Qα| per flight, go and scrubbed, against the allowable, and the
     LCC's predicted load (with its allowance) against the flown max |Qα|."""
     import matplotlib
@@ -456,16 +473,31 @@ def plot_flight_day(out: str | Path, rows: Sequence[Mapping]) -> list[Path]:
     allowable = math.degrees(load_requirements().allowable_pa_rad) / 1e3
     s = summarise_flight_day(rows)
     paths = []
-    fig, ax = plt.subplots(figsize=(7, 3.6))
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 3.8))
     months = [int(m) for m in s["availability"]]
-    ax.bar(months, [s["availability"][str(m)] for m in months])
+    ax.bar(months, [s["availability"][str(m)] for m in months], label="go")
+    for why, mark in zip(s["availability_without"], "o^sv"):
+        by = s["availability_without"][why]
+        ax.plot(months, [by[str(m)] for m in months], mark, ms=5,
+                label=f"were {why} waived")
     ax.axhline(0.9, color="k", ls="--", lw=1, label="90 %")
     ax.set_xticks(range(1, 13))
     ax.set_ylim(0, 1.05)
     ax.set_xlabel("month")
     ax.set_ylabel("fraction of samples go")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=7, loc="lower left")
     ax.set_title("Launch availability by month (LCC on the measured profile)", fontsize=9)
+    names = sorted(s["flight_day"]["scrub_reasons"])
+    width = 0.8 / max(len(names), 1)
+    for j, why in enumerate(names):
+        ax2.bar(np.array(months) - 0.4 + (j + 0.5) * width,
+                [s["scrub_reasons_by_month"][str(m)].get(why, 0) for m in months], width,
+                label=why)
+    ax2.set_xticks(range(1, 13))
+    ax2.set_xlabel("month")
+    ax2.set_ylabel("samples scrubbed for it")
+    ax2.legend(fontsize=7)
+    ax2.set_title("No-go reasons (a sample may have several)", fontsize=9)
     fig.tight_layout()
     paths.append(Path(out) / "availability_by_month.png")
     fig.savefig(paths[-1], dpi=100)

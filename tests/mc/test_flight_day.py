@@ -121,9 +121,10 @@ def test_months_cycle_or_stay():
     assert {sample_month(i, 7) for i in range(30)} == {7}
 
 
-def _row(sample, month, go, allowable, envelope=True, stable=True, rate=0.0, failed=""):
+def _row(sample, month, go, allowable, envelope=True, stable=True, rate=0.0, failed="",
+         reasons="load"):
     return {"sample": sample, "month": month, "lcc_go": go,
-            "lcc_reasons": "" if go else "load", "passed_allowable": allowable,
+            "lcc_reasons": "" if go else reasons, "passed_allowable": allowable,
             "passed_envelope": envelope, "stable": stable, "rate_limited_s": rate,
             "failed_allowable": failed, "max_abs_q_alpha_pa_deg": 1.0,
             "flight_day_verdict": ("scrubbed" if not go else
@@ -135,13 +136,23 @@ def test_summary_counts_go_samples_scrubs_and_availability():
     rows = [_row(0, 1, True, True), _row(1, 2, True, False, failed="q_alpha_allowable"),
             _row(2, 1, False, False), _row(3, 2, True, True, stable=False, rate=0.7,
                                            failed="stability"),
-            _row(4, 1, True, True, envelope=False)]
+            _row(4, 1, True, True, envelope=False), _row(5, 2, False, True,
+                                                         reasons="drift,ground_wind"),
+            _row(6, 2, False, True, reasons="ground_wind")]
     s = summarise_flight_day(rows)
     f = s["flight_day"]
-    assert (f["n"], f["passed"], f["failed"], f["scrubbed"]) == (4, 2, 2, 1)
+    assert (f["n"], f["passed"], f["failed"], f["scrubbed"]) == (4, 2, 2, 3)
     assert (f["unstable"], f["rate_limited"]) == (1, 1)
     assert f["failed_by_requirement"] == {"q_alpha_allowable": 1, "stability": 1}
-    assert s["availability"] == {"1": pytest.approx(2 / 3), "2": 1.0}
+    assert f["scrub_reasons"] == {"load": 1, "drift": 1, "ground_wind": 2}
+    assert s["availability"] == {"1": pytest.approx(2 / 3), "2": 0.5}
+    assert s["scrub_reasons_by_month"] == {"1": {"load": 1},
+                                           "2": {"drift": 1, "ground_wind": 2}}
+    # waiving ground wind frees sample 6 (its only reason), not 5 (drift too)
+    assert s["availability_without"] == {"drift": {"1": pytest.approx(2 / 3), "2": 0.5},
+                                         "ground_wind": {"1": pytest.approx(2 / 3),
+                                                         "2": 0.75},
+                                         "load": {"1": 1.0, "2": 0.5}}
     # Clopper–Pearson 2 of 4 at 90 %: Beta⁻¹(0.1; 2, 3) (scipy's binomtest agrees)
     from scipy.stats import binomtest
 
@@ -149,8 +160,9 @@ def test_summary_counts_go_samples_scrubs_and_availability():
         binomtest(2, 4).proportion_ci(0.8, "exact").low, abs=1e-12)
     d = s["definitions"]
     assert d["envelope_section_2"]["go"]["passed"] == 2            # samples 0 and 3 (unstable) …
-    assert d["allowable_section_6"]["all_flown"]["passed"] == 2    # 0 and 4
-    assert d["allowable_section_6"]["scrubbed"] == {"n": 1, "passed": 0, "lower_bound_90": 0.0}
+    assert d["allowable_section_6"]["all_flown"]["passed"] == 4    # 0, 4, 5 and 6
+    assert d["allowable_section_6"]["scrubbed"]["n"] == 3
+    assert d["allowable_section_6"]["scrubbed"]["passed"] == 2     # 5 and 6
 
 
 @pytest.mark.slow
