@@ -25,8 +25,9 @@ from vega_core.errors import BadInput, one_line
 __all__ = ["SAME_INPUTS", "COLUMNS", "load_campaign", "check_same_samples", "compare",
            "report_lines", "plot"]
 
-SAME_INPUTS = ("scenario_yaml", "dispersions_yaml", "seed", "runs")
-"""The campaign inputs (``campaign.json``) that make two campaigns fly the same samples."""
+SAME_INPUTS = ("scenario_yaml", "dispersions_yaml", "seed", "runs", "environment")
+"""The campaign inputs (``campaign.json``) that make two campaigns fly the same samples
+(``environment``: absent for the thesis box, the flight day's settings and files otherwise)."""
 COLUMNS = ("sample", "verdict", "failed", "q_alpha_margin", "max_abs_z_m", "max_abs_zdot_mps")
 """The columns of ``results.parquet`` a comparison reads."""
 

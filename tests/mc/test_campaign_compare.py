@@ -54,8 +54,9 @@ def campaigns(tmp_path_factory):
     out = {}
     for name, seed in (("a", 2), ("b", 2), ("other", 3)):
         out[name] = root / name
-        code = cli.main(["mc", "run", "--scenario", str(scenario), "--runs", str(RUNS),
-                         "--seed", str(seed), "--workers", "1", "--out", str(out[name])])
+        code = cli.main(["mc", "run", "--environment", "thesis-box", "--scenario", str(scenario),
+                         "--runs", str(RUNS), "--seed", str(seed), "--workers", "1",
+                         "--out", str(out[name])])
         assert code in (0, 1)
     return out
 

@@ -33,7 +33,8 @@ def _rows(directory):
 
 
 def _mc(*args):
-    return [sys.executable, "-m", "vega_cli.cli", "mc", "run", *map(str, args)]
+    return [sys.executable, "-m", "vega_cli.cli", "mc", "run", "--environment", "thesis-box",
+            *map(str, args)]
 
 
 def _scheduler_address(path, proc, timeout_s):
@@ -63,7 +64,8 @@ def reference_run(tmp_path_factory, scenario):
     out = tmp_path_factory.mktemp("mc") / "one"
     text = io.StringIO()
     with contextlib.redirect_stdout(text):
-        code = cli.main(["mc", "run", "--scenario", str(scenario), "--runs", str(RUNS),
+        code = cli.main(["mc", "run", "--environment", "thesis-box",
+                         "--scenario", str(scenario), "--runs", str(RUNS),
                          "--seed", "4", "--workers", "1", "--out", str(out)])
     assert code in (0, 1)
     return out, text.getvalue()
@@ -88,7 +90,8 @@ def test_per_flight_path_gives_the_same_rows(reference, scenario, tmp_path, caps
     """``--batch 1`` (one fly_sample task per sample, on two workers) and the default
     batched campaign: the same results.parquet rows, wall times apart."""
     out = tmp_path / "per_flight"
-    code = cli.main(["mc", "run", "--scenario", str(scenario), "--runs", str(RUNS), "--seed", "4",
+    code = cli.main(["mc", "run", "--environment", "thesis-box",
+                     "--scenario", str(scenario), "--runs", str(RUNS), "--seed", "4",
                      "--workers", "2", "--batch", "1", "--out", str(out)])
     text = capsys.readouterr().out
     assert code in (0, 1) and "batched engine" not in text
@@ -121,7 +124,8 @@ def test_resume_flies_only_the_missing_samples_of_a_batch(reference, tmp_path, c
 @pytest.mark.slow
 def test_same_samples_whatever_the_worker_count(reference, scenario, tmp_path, capsys):
     out = tmp_path / "two"
-    code = cli.main(["mc", "run", "--scenario", str(scenario), "--runs", str(RUNS), "--seed", "4",
+    code = cli.main(["mc", "run", "--environment", "thesis-box",
+                     "--scenario", str(scenario), "--runs", str(RUNS), "--seed", "4",
                      "--workers", "2", "--out", str(out)])
     text = capsys.readouterr().out
     assert code in (0, 1) and "Dask LocalCluster, 2 workers" in text

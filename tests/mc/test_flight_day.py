@@ -146,6 +146,7 @@ def test_summary_counts_go_samples_scrubs_and_availability():
     assert f["failed_by_requirement"] == {"q_alpha_allowable": 1, "stability": 1}
     assert f["scrub_reasons"] == {"load": 1, "drift": 1, "ground_wind": 2}
     assert s["availability"] == {"1": pytest.approx(2 / 3), "2": 0.5}
+    assert s["availability_design"] == {"1": pytest.approx(2 / 3), "2": 0.75}   # 6 only
     assert s["scrub_reasons_by_month"] == {"1": {"load": 1},
                                            "2": {"drift": 1, "ground_wind": 2}}
     # waiving ground wind frees sample 6 (its only reason), not 5 (drift too)
@@ -167,7 +168,8 @@ def test_summary_counts_go_samples_scrubs_and_availability():
 
 @pytest.mark.slow
 @pytest.mark.parametrize("args, message", [
-    (["--runs", "2", "--month", "3"], "--month needs --environment flight-day"),
+    (["--runs", "2", "--environment", "thesis-box", "--month", "3"],
+     "--month needs --environment flight-day"),
     (["--runs", "2", "--environment", "flight-day", "--lag-s", "-1"],
      "--lag-s -1.0: must be within 0..86400 s"),
 ])

@@ -19,13 +19,13 @@ copies of the scenario in process on a Dask cluster (a LocalCluster of K worker 
 127.0.0.1 by default), in batches of up to B samples per task (the batched engine; ``--batch 1``:
 one flight per task, the per-flight path; the same rows either way), writes every finished
 sample as it comes, then ``results.parquet``, ``summary.json``, ``summary.md`` and plots. Exit
-status: 0 if every flight passed, 1 if one failed, 2 on bad input (checked before anything
-starts). ``--environment flight-day`` (:mod:`vega_signoff.flight_day`): the site's statistical
+status: 2 on bad input (checked before anything starts). The default environment,
+``flight-day`` (:mod:`vega_signoff.flight_day`), is the sign-off's: the site's statistical
 winds, the guidance re-biased per sample to its sounding, the launch commit criterion judged
 before each sample flies (every sample is flown); exit 0 when at least one sample was go and
-every go sample passes the flight-day verdict, 1 otherwise. The default stays
-``thesis-box``, the campaign ``vega verify``, ``vega ship`` and the shipped sign-off record are
-tied to.
+every go sample passes the flight-day verdict, 1 otherwise. ``--environment thesis-box``: the
+thesis' one wind profile scaled and shifted (docs/MONTE_CARLO.md §1–§5; ``vega verify``'s
+regression campaign against the flown table); exit 0 if every flight passed, 1 if one failed.
 """
 
 from __future__ import annotations
@@ -417,11 +417,10 @@ def register(subparsers) -> None:
                           f"per-flight path; the rows are the same either way, also when "
                           f"resuming)")
     run.add_argument("--environment", choices=("thesis-box", "flight-day"),
-                     default="thesis-box",
-                     help="wind environment: thesis-box (default: the thesis profile scaled "
-                          "and shifted, the campaign vega verify signs off) or flight-day "
-                          "(the site's statistical winds, guidance re-biased per sample, "
-                          "launch commit criterion)")
+                     default="flight-day",
+                     help="wind environment: flight-day (default, the sign-off: the site's "
+                          "statistical winds, guidance re-biased per sample, launch commit "
+                          "criterion) or thesis-box (the thesis profile scaled and shifted)")
     run.add_argument("--site", default=None, metavar="FILE",
                      help="flight-day: wind site file (default: the shipped Kourou file)")
     run.add_argument("--month", type=_positive_int(12), default=None, metavar="M",

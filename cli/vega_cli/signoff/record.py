@@ -24,7 +24,7 @@ from vega_core.errors import BadInput, one_line
 __all__ = ["CHECKS", "GATED_SCENARIOS", "REPORTED_SCENARIOS", "FULL_FLIGHT_AT", "MIN_RUNS",
            "sha256_of", "read_record", "check_record", "signed_off_passes"]
 
-CHECKS = ("sil", "margins", "robust", "mc")
+CHECKS = ("sil", "margins", "robust", "mc", "flight-day")
 """The checks of a sign-off, in the order they run."""
 GATED_SCENARIOS = ("nominal", "thesis", "gust", "wind_change", "dispersed_bending_low",
                    "dispersed_bending_high", "dispersed_mode2", "dispersed_worst")
