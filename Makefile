@@ -5,11 +5,11 @@
 #   make check   `make lint`, then the fast tier of the suite: tests not marked slow (≤ 60 s)
 #   make test    `make lint`, then the whole pytest suite (sets up first; what .ci/run runs)
 #   make sil     fly the default SIL scenario into bags/ (sets up first; SIL_ARGS=...)
-#   make mc      the default Monte Carlo campaign: 852 dispersed flights of `nominal` on a Dask
+#   make mc      the default Monte Carlo campaign: 852 flight-day samples of `nominal` on a Dask
 #                LocalCluster into bags/mc-<UTC time>/ (sets up first; MC_ARGS=..., e.g. --runs 100)
 #   make mutation  mutmut over the core modules, one at a time (MODULE=name: one; docs/TESTING.md)
 #   make soak    the whole suite ROUNDS times (10) with COPIES copies (2) at once (tools/soak.py)
-#   make verify-design  the sign-off checks of TABLE (default: the shipped table), ≈ 20 min
+#   make verify-design  the sign-off checks of TABLE (default: the shipped table), ≈ 30 min
 #   make clean   remove the workspace build products and caches; `make distclean` also .venv
 #
 # Every step is incremental: a second `make setup` with nothing changed does nothing.
@@ -156,11 +156,12 @@ soak: setup
 	cd $(ROOT) && $(VENV)/bin/vega-env python tools/soak.py --rounds $(ROUNDS) --copies $(COPIES)
 
 # Sign-off checks of a controller table (`vega verify`, docs/FLIGHT_DESIGN.md §6.5): the SIL
-# verdict scenarios, `vega margins --dispersed`, `vega robust --no-mu`, an 852-flight campaign;
+# verdict scenarios, `vega margins --dispersed`, `vega robust --no-mu`, an 852-flight
+# thesis-box campaign and an 852-sample flight-day campaign;
 # exit 0 when every gated check passes; the record bags/verify-<UTC>/verify.json is what
 # `vega ship` installs a table with. TABLE (default: the shipped table), VERIFY_ARGS appended,
 # e.g. VERIFY_ARGS="--mc-reference 757" (the flown table's own sign-off passes, the least
-# `vega ship` accepts); about 20 min on 2 quiet cores
+# `vega ship` accepts); the time: docs/PERFORMANCE.md
 TABLE ?= $(WS)/src/vega_gnc/config/tvc_controller.npz
 .PHONY: verify-design
 verify-design: setup
