@@ -22,7 +22,8 @@ track, wind, noise), the frame loop (compiled truth side + batched controller) a
 The samples flown on both sides are also compared: every recorded array of the per-flight
 flights against the same samples of the batch, as bytes ("bit-identical" in the output).
 
-``--mc RUNS`` then measures the real command, ``vega mc run --scenario nominal --runs RUNS``
+``--mc RUNS`` then measures the real command, ``vega mc run --environment thesis-box
+--scenario nominal --runs RUNS``
 (seed 0, fresh processes, a LocalCluster each), old against new: ``--batch 1`` (one
 ``fly_sample`` task per flight, the per-flight path) and ``--batch B`` (``--mc-batch``, default
 the command's), each on 1 and on 2 workers, in the order per-flight/1, batched/1, batched/2,
@@ -55,8 +56,9 @@ def _campaign(runs: int, batch: int, workers: int, out: Path) -> dict:
     """One ``vega mc run`` in a fresh process: its wall, flying rate and CPU of its tree."""
     c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "vega_cli.cli", "mc", "run", "--scenario",
-                           "nominal", "--runs", str(runs), "--seed", "0", "--workers",
+    done = subprocess.run([sys.executable, "-m", "vega_cli.cli", "mc", "run", "--environment",
+                           "thesis-box", "--scenario", "nominal", "--runs", str(runs),
+                           "--seed", "0", "--workers",
                            str(workers), "--batch", str(batch), "--out", str(out)],
                           capture_output=True, text=True, check=False)
     wall = time.perf_counter() - t0

@@ -175,8 +175,9 @@ def _scaling(runs: int) -> None:
             c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
             t0 = time.perf_counter()
             done = subprocess.run([sys.executable, "-m", "vega_cli.cli", "mc", "run",
-                                   "--scenario", "nominal", "--runs", str(runs), "--seed", "0",
-                                   "--workers", str(workers), "--out", str(out)],
+                                   "--environment", "thesis-box", "--scenario", "nominal",
+                                   "--runs", str(runs), "--seed", "0", "--workers",
+                                   str(workers), "--out", str(out)],
                                   capture_output=True, text=True, check=False)
             wall = time.perf_counter() - t0
             c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
