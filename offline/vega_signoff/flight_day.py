@@ -511,7 +511,8 @@ def plot_flight_day(out: str | Path, rows: Sequence[Mapping]) -> list[Path]:
     ax2.set_xticks(range(1, 13))
     ax2.set_xlabel("month")
     ax2.set_ylabel("samples scrubbed for it")
-    ax2.legend(fontsize=7)
+    if names:
+        ax2.legend(fontsize=7)
     ax2.set_title("No-go reasons (a sample may have several)", fontsize=9)
     fig.tight_layout()
     paths.append(Path(out) / "availability_by_month.png")

@@ -33,6 +33,8 @@ def _verify(args) -> int:
     ([str(SHIPPED), "--out", "{d}/o", "--checks", "sil,fly"], "--checks sil,fly: each of"),
     ([str(SHIPPED), "--out", "{d}/o", "--scenarios", "nominal,nope"], "--scenarios nope:"),
     ([str(SHIPPED), "--out", "{d}/o", "--runs", "0"], "--runs 0: must be within"),
+    ([str(SHIPPED), "--out", "{d}/o", "--flight-day-runs", "0"],
+     "--flight-day-runs 0: must be within"),
     ([str(SHIPPED), "--out", "{d}/full"], "--out {d}/full: exists and is not an empty"),
     ([str(SHIPPED), "--out", "{d}/o", "--heldout-reference", "{d}/full"],
      "--heldout-reference {d}/full: no campaign.json (not a `vega mc run` campaign)"),
@@ -139,8 +141,8 @@ def test_a_short_flight_day_check_records_and_gates(tmp_path, capsys):
     """Two flight-day samples cannot show 99.73 % at 90 %: the check runs the real campaign,
     records its figures and fails the gate."""
     out = tmp_path / "v"
-    code = _verify([str(SHIPPED), "--out", str(out), "--checks", "flight-day", "--runs", "2",
-                    "--workers", "1"])
+    code = _verify([str(SHIPPED), "--out", str(out), "--checks", "flight-day",
+                    "--flight-day-runs", "2", "--workers", "1"])
     report = json.loads((out / "verify.json").read_text())
     assert code == 1 and report["signed_off"] is False
     (check,) = report["checks"]
@@ -166,7 +168,8 @@ def test_a_short_real_sign_off_reports_and_gates(tmp_path, capsys):
     assert report["table_sha256"] == hashlib.sha256(SHIPPED.read_bytes()).hexdigest()
     assert report["scope"] == {"checks": ["margins", "mc"],
                                "scenarios": list(R.GATED_SCENARIOS + R.REPORTED_SCENARIOS),
-                               "at": "43", "runs": 2, "mc_reference": 3}
+                               "at": "43", "runs": 2, "mc_reference": 3,
+                               "flight_day_runs": 1440}
     margins, mc = report["checks"]
     assert margins["check"] == "margins --dispersed" and margins["exit"] == 0
     assert margins["passed"] and margins["figures"]["unstable_loops"] == 0
