@@ -72,12 +72,32 @@ def test_status_names_the_record_and_its_date():
     assert _record()["signed_off"] is True
 
 
+def test_flight_day_line_is_the_record():
+    check = _check(_record(), f"flight-day {_record()['scope']['flight_day_runs']} samples")
+    f = check["figures"]
+    m = _match(r"^Flight day \(the sign-off\), seed 0: (\d+) of (\d+) go samples of (\d+) pass "
+               r"the load allowable and every requirement \(lower bound ([\d.]+) % at 90 % "
+               r"confidence\), (\d+) unstable; availability ([\d.]+)–([\d.]+) % by month, "
+               r"the design's ([\d.]+)–([\d.]+) %\.$", _line("Flight day"))
+    passed, n, runs, lower, unstable, a_lo, a_hi, d_lo, d_hi = m.groups()
+    assert (int(passed), int(n)) == (f["passed"], f["n"])
+    assert int(runs) == f["n"] + f["scrubbed"] == _record()["scope"]["flight_day_runs"]
+    assert lower == f"{100 * f['lower_bound_90']:.2f}"
+    assert int(unstable) == f["unstable"]
+    assert a_lo == f"{100 * min(f['availability'].values()):.1f}"
+    assert a_hi == f"{100 * max(f['availability'].values()):.1f}"
+    assert d_lo == f"{100 * min(f['availability_design'].values()):.1f}"
+    assert d_hi == f"{100 * max(f['availability_design'].values()):.1f}"
+    assert check["passed"] is True
+
+
 def test_monte_carlo_line_is_the_record():
     mc = _check(_record(), "mc 852 flights")
     figures = mc["figures"]
-    m = _match(r"^Monte Carlo, seed 0: (\d+) of (\d+) flights pass \(([\d.]+) %; lower bound "
-               r"([\d.]+) % at 90 % confidence\), (\d+) unstable; failures by requirement: "
-               r"(\d+) Qα, (\d+) drift\.$", _line("Monte Carlo, seed 0:"))
+    m = _match(r"^Thesis-box Monte Carlo \(regression\), seed 0: (\d+) of (\d+) flights pass "
+               r"\(([\d.]+) %; lower bound ([\d.]+) % at 90 % confidence\), (\d+) unstable; "
+               r"failures by requirement: (\d+) Qα, (\d+) drift\.$",
+               _line("Thesis-box Monte Carlo"))
     passed, runs, percent, lower, unstable, q_alpha, drift = m.groups()
     assert int(passed) == figures["passed"]
     assert int(runs) == figures["runs"] == _record()["scope"]["runs"]
@@ -85,21 +105,6 @@ def test_monte_carlo_line_is_the_record():
     assert lower == f"{100 * figures['pass_fraction_lower_90']:.1f}"
     assert int(unstable) == figures["unstable"]
     assert {"q_alpha": int(q_alpha), "drift": int(drift)} == figures["failures_by_requirement"]
-
-
-def test_held_out_line_is_the_record():
-    figures = _check(_record(), "mc held-out seed 1")["figures"]
-    m = _match(r"^Held-out Monte Carlo, seed (\d+): (\d+) of (\d+) flights pass, against (\d+) "
-               r"for the table flown before \((\d+) lost, (\d+) won, McNemar exact p "
-               r"([\d.]+)\)\.$", _line("Held-out Monte Carlo"))
-    seed, passed, runs, reference, lost, won, p = m.groups()
-    assert int(seed) == figures["seed"]
-    assert int(passed) == figures["passed"]
-    assert int(runs) == figures["runs"]
-    assert int(reference) == figures["reference_passed"]
-    assert int(lost) == len(figures["lost"])
-    assert int(won) == len(figures["won"])
-    assert float(p) == pytest.approx(figures["mcnemar_exact_p"], abs=0)
 
 
 def test_nominal_margins_line_is_the_record():
