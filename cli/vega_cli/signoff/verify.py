@@ -189,17 +189,24 @@ def mc_figures(summary: dict, reference: int | None) -> dict:
             "reference_passed": reference}
 
 
+def _campaign(table, out: Path, environment: str, runs: int, workers: int,
+              name: str) -> tuple[int, float, dict | None]:
+    """``vega mc run --environment ENVIRONMENT`` of TABLE into OUT/NAME (its log OUT/NAME.log):
+    the exit status, the wall time and the campaign's summary.json (None if it wrote none)."""
+    code, wall = _vega(["mc", "run", "--environment", environment, "--runs", str(runs),
+                        "--table", str(table), "--out", str(out / name), "--workers",
+                        str(workers)], out / f"{name}.log")
+    path = out / name / "summary.json"
+    return code, wall, json.loads(path.read_text()) if path.exists() else None
+
+
 def check_mc(table, out: Path, runs: int, workers: int, reference: int | None) -> list[dict]:
-    """``vega mc run``: gated on 0 unstable flights and, with a reference, at least that many
-    passes."""
-    code, wall = _vega(["mc", "run", "--environment", "thesis-box", "--runs", str(runs),
-                        "--table", str(table), "--out", str(out / "mc"), "--workers",
-                        str(workers)], out / "mc.log")
+    """``vega mc run --environment thesis-box``: gated on 0 unstable flights and, with a
+    reference, at least that many passes."""
+    code, wall, s = _campaign(table, out, "thesis-box", runs, workers, "mc")
     figures = {"log": "mc.log"}
-    path = out / "mc" / "summary.json"
     passed = False
-    if path.exists():
-        s = json.loads(path.read_text())
+    if s is not None:
         figures.update(mc_figures(s, reference))
         passed = s["unstable"] == 0 and (reference is None or s["passed"] >= reference)
     return [{"check": f"mc {runs} flights", "exit": code, "wall_s": round(wall, 1),
@@ -235,14 +242,11 @@ def flight_day_passed(f: dict) -> bool:
 def check_flight_day(table, out: Path, runs: int, workers: int) -> list[dict]:
     """``vega mc run --environment flight-day``: gated on 99.73 % at 90 % shown, 0 unstable,
     0 rate-limited and the design's availability ≥ :data:`AVAILABILITY_FLOOR` every month."""
-    code, wall = _vega(["mc", "run", "--environment", "flight-day", "--runs", str(runs),
-                        "--table", str(table), "--out", str(out / "flight_day"), "--workers",
-                        str(workers)], out / "flight_day.log")
+    code, wall, s = _campaign(table, out, "flight-day", runs, workers, "flight_day")
     figures = {"log": "flight_day.log"}
-    path = out / "flight_day" / "summary.json"
     passed = False
-    if path.exists():
-        figures.update(flight_day_figures(json.loads(path.read_text())))
+    if s is not None:
+        figures.update(flight_day_figures(s))
         passed = flight_day_passed(figures)
     return [{"check": f"flight-day {runs} samples", "exit": code, "wall_s": round(wall, 1),
              "gated": True, "passed": passed, "figures": figures}]
