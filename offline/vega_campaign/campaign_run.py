@@ -66,7 +66,7 @@ ENVIRONMENT_BATCH = 32
 whose task flies its samples' predicted flights as one batch and their flights as another):
 smaller than :data:`DEFAULT_BATCH` because a sample also costs its re-biasing, so that rows
 reach the disk and the progress line every ≈ 10 CPU s; the task's fixed cost (the guidance
-problem's assembly, ≈ 8 CPU s, and the LCC's drift sensitivity, 62 flights) is paid once per
+problem's assembly and the LCC's drift sensitivity, 62 flights: ≈ 10 CPU s) is paid once per
 worker process, not per task."""
 
 
