@@ -40,8 +40,10 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from vega_core.documents import field_error as _fail
+from vega_core.documents import finite_number as _number
+from vega_core.documents import mapping_keys as _keys
 from vega_core.documents import parse_yaml, read_text
-from vega_core.errors import BadFile
 
 __all__ = ["Dispersions", "load_dispersions", "parse_dispersions", "default_dispersions_path",
            "sample_scenario", "fly_sample", "fly_batch_samples", "flight_metrics", "METRICS",
@@ -99,10 +101,6 @@ def default_dispersions_path() -> Path:
     return Path(__file__).resolve().parent / "data" / "dispersions.yaml"
 
 
-def _fail(path: str, key: str, problem: str) -> BadFile:
-    return BadFile(f"{path}: field '{key}': {problem}")
-
-
 def _interval(path, key, value, lo_limit=-math.inf, hi_limit=math.inf) -> tuple[float, float]:
     if (not isinstance(value, (list, tuple)) or len(value) != 2
             or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value)):
@@ -113,27 +111,6 @@ def _interval(path, key, value, lo_limit=-math.inf, hi_limit=math.inf) -> tuple[
     if lo < lo_limit or hi > hi_limit:
         raise _fail(path, key, f"must lie within [{lo_limit:g}, {hi_limit:g}], got {value!r}")
     return lo, hi
-
-
-def _number(path, key, value, lo=-math.inf, hi=math.inf) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise _fail(path, key, f"must be a finite number, got {value!r}")
-    if not lo <= value <= hi:
-        raise _fail(path, key, f"must lie within [{lo:g}, {hi:g}], got {value!r}")
-    return float(value)
-
-
-def _keys(path, key, tree, required, optional=()):
-    if not isinstance(tree, Mapping):
-        raise _fail(path, key, f"must be a mapping, got {type(tree).__name__}")
-    prefix = f"{key}." if key else ""
-    for k in tree:
-        if k not in required and k not in optional:
-            raise _fail(path, f"{prefix}{k}", "unknown key")
-    for k in required:
-        if k not in tree:
-            raise _fail(path, f"{prefix}{k}", "missing")
-    return tree
 
 
 def parse_dispersions(text: str, path: str = "<dispersions>") -> Dispersions:

@@ -39,7 +39,9 @@ from typing import Mapping
 
 import numpy as np
 
-from vega_campaign.campaign import _fail, _keys, _number
+from vega_core.documents import field_error as _fail
+from vega_core.documents import finite_number as _number
+from vega_core.documents import mapping_keys as _keys
 from vega_core.documents import parse_yaml, read_text
 from vega_loops.blas import one_blas_thread
 from vega_model.wind import WindTable

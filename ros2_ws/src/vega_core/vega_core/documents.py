@@ -16,14 +16,17 @@ flight-condition table (0.1 s rows over 110 s), ~270 kB.
 
 from __future__ import annotations
 
+import math
 import os
 import stat
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from vega_core.errors import BadFile
 
-__all__ = ["MAX_DOCUMENT_BYTES", "read_text", "parse_yaml", "load_yaml", "refuse_pipe"]
+__all__ = ["MAX_DOCUMENT_BYTES", "read_text", "parse_yaml", "load_yaml", "refuse_pipe",
+           "field_error", "mapping_keys", "finite_number"]
 
 MAX_DOCUMENT_BYTES = 1 << 20
 """Largest document :func:`read_text` accepts by default [bytes] (1 MiB; module docstring)."""
@@ -156,3 +159,35 @@ def load_yaml(path: str | Path, what: str, error: type[Exception] = BadFile) -> 
     """:func:`read_text` then :func:`parse_yaml` (``source`` = the path): the mapping of the
     YAML file ``path``, or ``error`` with one of their one-line messages."""
     return parse_yaml(read_text(path, what, error), str(path), error)
+
+
+def field_error(path: str, key: str, problem: str) -> BadFile:
+    """The one-line error of a document's field: ``PATH: field 'KEY': PROBLEM``."""
+    return BadFile(f"{path}: field '{key}': {problem}")
+
+
+def mapping_keys(path: str, key: str, tree: Any, required, optional=()) -> Mapping:
+    """``tree`` if it is a mapping with every ``required`` key and no key outside
+    ``required`` and ``optional``; else :func:`field_error` naming the first key at fault
+    (``key``: the mapping's own dotted name, "" at the top)."""
+    if not isinstance(tree, Mapping):
+        raise field_error(path, key, f"must be a mapping, got {type(tree).__name__}")
+    prefix = f"{key}." if key else ""
+    for k in tree:
+        if k not in required and k not in optional:
+            raise field_error(path, f"{prefix}{k}", "unknown key")
+    for k in required:
+        if k not in tree:
+            raise field_error(path, f"{prefix}{k}", "missing")
+    return tree
+
+
+def finite_number(path: str, key: str, value: Any, lo: float = -math.inf,
+                  hi: float = math.inf) -> float:
+    """``value`` as a float if it is a finite number (not a bool) within [lo, hi]; else
+    :func:`field_error`."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise field_error(path, key, f"must be a finite number, got {value!r}")
+    if not lo <= value <= hi:
+        raise field_error(path, key, f"must lie within [{lo:g}, {hi:g}], got {value!r}")
+    return float(value)

@@ -292,6 +292,7 @@ class ControllerBatch:
             t = many[0].t_s
             shared = all(r.t_s.shape == t.shape and np.array_equal(r.t_s, t) for r in many)
             self._many = many
+            self._index = np.arange(self.n)
             self._stacks = (np.stack([r._stack for r in many]),
                             np.stack([r._dstack for r in many])) if shared else None
         fields = ("pitch_rad", "pitch_rate_radps", "drift_m", "drift_rate_mps")
@@ -400,7 +401,7 @@ class ControllerBatch:
 
     def _references(self, stamp_s: np.ndarray, k) -> np.ndarray:
         """:meth:`_reference` with one reference per sample."""
-        idx = np.arange(self.n)[k]
+        idx = self._index[k]
         if self._stacks is not None and (stamp_s == stamp_s[0]).all():
             ref = self._many[0]                       # the shared grid: at()'s index, factor
             t, ts = ref.t_s, float(stamp_s[0])
