@@ -30,10 +30,10 @@ failing amplitude until they are one grid step apart. The amplitude 0 is the mea
 itself, flown once per guidance; if it fails, no search of that guidance is run. It assumes
 the verdict is monotone in |Δw| on each search (one threshold); it reports the largest passing
 amplitude found and the requirements that failed at the smallest failing one. All searches
-advance together, one round per bisection step: the flights of a round that share a guidance
-reference fly as batches (:func:`vega_sim.batch.fly_batch`, bit for bit the per-flight
-results), the re-biased jets (one reference each) one by one; a round's batches and flights are
-shared out over ``workers`` processes. The results do not depend on the number of workers.
+advance together, one round per bisection step: the flights of a round fly as batches
+(:func:`vega_sim.batch.fly_batch`, each flight with its own reference, bit for bit the
+per-flight results; the flights without a reference in batches of their own), shared out
+over ``workers`` processes. The results do not depend on the number of workers.
 """
 
 from __future__ import annotations
@@ -284,9 +284,9 @@ def _table(path: str):
 
 
 def _fly_group(scenarios: Sequence, table_path: str) -> tuple[list[Verdict], float]:
-    """Fly scenarios that share a guidance reference: as one batch (bit for bit the
-    per-flight results), or one flight through ``run_scenario``. Returns their verdicts and
-    the CPU time it took [s]."""
+    """Fly scenarios that all fly a guidance reference (each its own) or all none: as one
+    batch (bit for bit the per-flight results), or one flight through ``run_scenario``.
+    Returns their verdicts and the CPU time it took [s]."""
     from vega_sim.batch import fly_batch
     from vega_sim.closed_loop import run_scenario
 
@@ -535,7 +535,7 @@ def capability(table_path: str | Path, base=None, *, bands_km=DEFAULT_BANDS_KM,
                     break
                 rounds += 1
                 t0 = time.perf_counter()
-                groups: dict[str, list[tuple[Search, Any]]] = {}
+                groups: dict[bool, list[tuple[Search, Any]]] = {}
                 for i, s in enumerate(active):
                     amp = s.bisection.candidate()
                     profile = s.profile(base, amp)
@@ -544,8 +544,9 @@ def capability(table_path: str | Path, base=None, *, bands_km=DEFAULT_BANDS_KM,
                         ref = rebiased(profile, f"r{rounds}-{i}")
                     else:
                         ref = guidance[s.guidance]
-                    groups.setdefault(ref, []).append((s, _scenario(nominal, name, profile,
-                                                                    ref)))
+                    # one batch may mix references, not references with none (fly_batch)
+                    groups.setdefault(ref == NO_GUIDANCE, []).append(
+                        (s, _scenario(nominal, name, profile, ref)))
                 tasks = []
                 for members in groups.values():
                     for part in _chunks(members, workers if len(members) > 1 else 1):
